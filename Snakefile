@@ -1,0 +1,16 @@
+# graspstab: predicting grasp instability from fingertip forces.
+# Thin on purpose: config loading and input functions live in workflow/rules/common.smk, each stage
+# in its own rule file, all logic in src/graspstab. Run: snakemake --cores 2 results/report.html
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/assets.smk"
+include: "workflow/rules/objects.smk"
+include: "workflow/rules/hand.smk"
+include: "workflow/rules/report.smk"
+
+
+rule all:
+    default_target: True
+    input:
+        "results/report.html",

@@ -1,0 +1,142 @@
+"""Configuration: Hydra composition, overrides, schema and object-set validation messages."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import pytest
+
+from graspstab.config import ConfigError, compose_config, load_config, split_snakemake_config
+from graspstab.config.validate import validate_config, validate_schema
+from tests.conftest import CONFIG_DIR, SCHEMA
+
+REFERENCE_SPLIT = {
+    "train": {"061_foam_brick", "009_gelatin_box", "014_lemon", "025_mug", "006_mustard_bottle",
+              "002_master_chef_can", "008_pudding_box", "026_sponge"},
+    "val": {"013_apple", "010_potted_meat_can"},
+    "test": {"016_pear", "077_rubiks_cube"},
+}
+
+
+@pytest.fixture(scope="module")
+def default_cfg() -> dict:
+    return compose_config(CONFIG_DIR, [])
+
+
+def test_default_config_matches_schema(default_cfg):
+    # A test that fails when the default config drifts from the schema (DESIGN.md habit).
+    validate_schema(default_cfg, SCHEMA)
+
+
+def test_default_object_set_is_reference_split(default_cfg):
+    items = default_cfg["objects"]["items"]
+    got = {s: {o for o, e in items.items() if e["split"] == s} for s in REFERENCE_SPLIT}
+    assert got == REFERENCE_SPLIT
+    assert all(e["mass"] > 0 for e in items.values())
+
+
+def test_reference_constants(default_cfg):
+    c = default_cfg
+    assert c["synthesis"]["energy"]["weights"] == {
+        "dis": 100.0, "fc": 1.0, "pen": 10.0, "spen": 100.0, "joint": 1000.0}
+    assert c["synthesis"]["annealing"]["iterations"] == 6000
+    assert c["replay"]["timestep"] == 0.0005 and c["replay"]["steps"] == 40000
+    assert c["labels"]["unstable_speed"] == 0.0012
+    assert c["preprocess"]["hull_points"]["count"] == 2000
+    assert c["hand"]["candidates"]["points_per_region"] == 12
+    assert c["profile_name"] == "quick"
+
+
+def _compose(snakemake_config: dict) -> dict:
+    return compose_config(CONFIG_DIR, *split_snakemake_config(snakemake_config, CONFIG_DIR))
+
+
+def test_profile_and_nested_overrides():
+    cfg = _compose(
+        {"profile": "thesis", "synthesis": {"shards": "3"}, "only_objects": ["061_foam_brick"],
+         "overrides": ["labels.window_s=0.3"]}
+    )
+    assert cfg["profile_name"] == "thesis"
+    assert cfg["synthesis"]["shards"] == 3  # the explicit override beats the profile
+    assert cfg["synthesis"]["grasps_per_shard"] == 128  # from the thesis profile
+    assert cfg["only_objects"] == ["061_foam_brick"]
+    assert cfg["labels"]["window_s"] == 0.3
+
+
+def test_override_values_keep_types():
+    cfg = _compose({"sweep": {"windows_s": ["0.1", "0.2"]}, "seed": 7,
+                    "assets": {"ycb_dir": "/tmp/some dir"},
+                    "objects": {"items": {"014_lemon": {"mass": "0.03"}}}})
+    assert cfg["objects"]["items"]["014_lemon"]["mass"] == 0.03
+    assert cfg["sweep"]["windows_s"] == [0.1, 0.2]
+    assert cfg["seed"] == 7
+    assert cfg["assets"]["ycb_dir"] == "/tmp/some dir"
+
+
+def test_env_var_sets_local_asset_dirs(monkeypatch, tmp_path):
+    monkeypatch.setenv("GRASPSTAB_YCB_DIR", str(tmp_path))
+    monkeypatch.delenv("GRASPSTAB_HAND_DIR", raising=False)
+    cfg = compose_config(CONFIG_DIR, [])
+    assert cfg["assets"]["ycb_dir"] == str(tmp_path)
+    assert cfg["assets"]["hand_dir"] is None
+
+
+def test_misspelt_key_is_rejected(default_cfg):
+    bad = copy.deepcopy(default_cfg)
+    bad["replay"]["timestpe"] = 0.001
+    with pytest.raises(ConfigError, match="replay"):
+        validate_schema(bad, SCHEMA)
+
+
+def test_unknown_override_key_fails_at_compose():
+    with pytest.raises(ConfigError):
+        compose_config(CONFIG_DIR, ["replay.no_such_key=1"])
+    with pytest.raises(ConfigError, match="no_such_key"):
+        _compose({"replay": {"no_such_key": "1"}})
+    with pytest.raises(ConfigError):
+        _compose({"profile": "no_such_profile"})
+
+
+def _with_entry(cfg: dict, object_id: str, **changes) -> dict:
+    bad = copy.deepcopy(cfg)
+    entry = dict(bad["objects"]["items"].get(object_id, {"split": "train", "mass": 0.1}))
+    entry.update(changes)
+    bad["objects"]["items"][object_id] = entry
+    return bad
+
+
+@pytest.mark.parametrize(
+    ("object_id", "changes", "field"),
+    [
+        ("999_not_an_object", {}, "'id'"),
+        ("014_lemon", {"split": "training"}, "'split'"),
+        ("014_lemon", {"mass": 0.0}, "'mass'"),
+        ("014_lemon", {"mass": -1.0}, "'mass'"),
+        ("014_lemon", {"mesh": "/nonexistent/lemon.obj"}, "'mesh'"),
+    ],
+)
+def test_bad_object_entry_names_entry_and_field(default_cfg, object_id, changes, field):
+    bad = _with_entry(default_cfg, object_id, **changes)
+    with pytest.raises(ConfigError) as err:
+        validate_config(bad, SCHEMA)
+    msg = str(err.value)
+    assert object_id in msg and field in msg and "ycb12" in msg
+
+
+def test_missing_mesh_in_local_dir_names_entry(default_cfg, tmp_path):
+    cfg = copy.deepcopy(default_cfg)
+    cfg["assets"]["ycb_dir"] = str(tmp_path)  # empty directory: no meshes
+    with pytest.raises(ConfigError) as err:
+        validate_config(cfg, SCHEMA)
+    assert "'mesh'" in str(err.value) and str(tmp_path) in str(err.value)
+
+
+def test_only_objects_must_be_in_set():
+    with pytest.raises(ConfigError, match="only_objects"):
+        load_config(CONFIG_DIR, SCHEMA, {"only_objects": ["003_cracker_box"]}, check_files=False)
+
+
+def test_load_config_with_shared_assets(ycb_dir: Path):
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"assets": {"ycb_dir": str(ycb_dir)}})
+    assert cfg["assets"]["ycb_dir"] == str(ycb_dir)

@@ -1,0 +1,88 @@
+"""End to end: the current DAG for one object in a temporary directory, through Snakemake."""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO
+
+OBJECT = "061_foam_brick"
+# Coarse CoACD settings keep the toy run fast; the defaults are exercised in the 12-object run.
+FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_resolution: 30}}"
+
+
+def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir),
+           "--cores", "2", *args]
+    return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, ycb_dir, hand_assets_dir):
+    workdir = tmp_path_factory.mktemp("wf")
+    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+    config = ["--config", f"only_objects=[{OBJECT}]", FAST]
+    proc = _snakemake(workdir, "results/report.html", *config, env=env)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    return workdir, env, config
+
+
+@pytest.mark.workflow
+def test_one_object_end_to_end(run):
+    workdir, _, _ = run
+    obj = workdir / "results" / "objects" / OBJECT
+    for name in ("mesh.obj", "convex_parts.npz", "object.xml", "sdf.npz", "hull_points.npy",
+                 "meta.json"):
+        assert (obj / name).stat().st_size > 0, name
+    meta = json.loads((obj / "meta.json").read_text())
+    assert meta["mass"] == pytest.approx(0.028)
+    assert meta["watertight_after"] is True
+    assert (workdir / "resources" / "ycb" / OBJECT / "textured.obj").is_file()
+    hand = workdir / "results" / "hand"
+    for name in ("hand.xml", "hand.json", "capsules.json", "contact_candidates.npz"):
+        assert (hand / name).is_file(), name
+    for name in ("objects.png", "hand_candidates.png", "hand_capsules.png"):
+        assert (workdir / "results" / "figures" / name).stat().st_size > 1000
+    assert (workdir / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").is_file()
+    bench = workdir / "results" / "benchmarks" / "preprocess_object" / f"{OBJECT}.tsv"
+    assert bench.is_file()
+
+
+@pytest.mark.workflow
+def test_report_is_self_contained(run):
+    workdir, _, _ = run
+    html = (workdir / "results" / "report.html").read_text()
+    assert OBJECT in html and "Provenance" in html
+    # no external requests: no http(s) sources or stylesheets
+    assert not re.search(r'(src|href)="https?://', html)
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
+    assert len(images) == 3
+    for data in images:
+        assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.workflow
+def test_second_run_does_nothing(run):
+    workdir, env, config = run
+    proc = _snakemake(workdir, "results/report.html", "--dry-run", *config, env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "Nothing to be done" in proc.stdout + proc.stderr
+
+
+@pytest.mark.workflow
+def test_bad_config_stops_at_load_time(tmp_path, ycb_dir, hand_assets_dir):
+    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+    proc = _snakemake(tmp_path, "--dry-run", "--config",
+                      "objects={items: {014_lemon: {split: training}}}", env=env)
+    assert proc.returncode != 0
+    out = proc.stdout + proc.stderr
+    assert "014_lemon" in out and "'split'" in out
+    assert not (tmp_path / "results").exists()

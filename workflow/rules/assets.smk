@@ -1,0 +1,46 @@
+# Inputs through the workflow: YCB meshes and the ORCA hand description, from a configured local
+# directory or the official archive (checksum-verified). Nothing is fetched at import time.
+
+
+rule fetch_ycb_object:
+    output:
+        mesh="resources/ycb/{object}/textured.obj",
+        source="resources/ycb/{object}/source.json",
+    params:
+        local_dir=config["assets"]["ycb_dir"],
+        url=lambda wc: config["assets"]["ycb_url"],  # a template: keep {id} unexpanded
+        sha256=lambda wc: object_entry(wc).get("sha256"),
+        mesh_override=lambda wc: object_entry(wc).get("mesh"),
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=15,
+    log:
+        "results/logs/fetch_ycb_object/{object}.log",
+    benchmark:
+        "results/benchmarks/fetch_ycb_object/{object}.tsv"
+    script:
+        "../scripts/fetch_ycb_object.py"
+
+
+rule fetch_hand_description:
+    output:
+        directory("resources/orcahand_description"),
+    params:
+        local_dir=config["assets"]["hand_dir"],
+        url=lambda wc: config["assets"]["hand_url"],  # a template: keep {commit} unexpanded
+        commit=config["assets"]["hand_commit"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=15,
+    log:
+        "results/logs/fetch_hand_description/hand.log",
+    benchmark:
+        "results/benchmarks/fetch_hand_description/hand.tsv"
+    script:
+        "../scripts/fetch_hand_description.py"

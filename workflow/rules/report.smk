@@ -1,0 +1,29 @@
+# The self-contained HTML report; at this stage it covers what exists (objects and hand).
+
+
+rule report:
+    input:
+        objects_figure="results/figures/objects.png",
+        hand_candidates="results/figures/hand_candidates.png",
+        hand_capsules="results/figures/hand_capsules.png",
+        hand_json="results/hand/hand.json",
+        meta=object_outputs("meta.json"),
+        object_benchmarks=expand(
+            "results/benchmarks/preprocess_object/{object}.tsv", object=object_ids()
+        ),
+    output:
+        "results/report.html",
+    params:
+        config=config,
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/report/report.log",
+    benchmark:
+        "results/benchmarks/report/report.tsv"
+    script:
+        "../scripts/write_report.py"

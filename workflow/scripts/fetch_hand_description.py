@@ -1,0 +1,13 @@
+"""Snakemake wrapper: provide resources/orcahand_description/ (graspstab.assets.hand)."""
+
+from graspstab.assets.hand import fetch_hand_description
+from graspstab.common.logs import setup_logging
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+setup_logging(sm.log[0])
+fetch_hand_description(
+    sm.output[0],
+    local_dir=sm.params.local_dir,
+    url_template=sm.params.url,
+    commit=sm.params.commit,
+)

@@ -1,0 +1,21 @@
+"""Snakemake wrapper: write the self-contained HTML report (graspstab.report)."""
+
+from pathlib import Path
+
+from graspstab.common.logs import setup_logging
+from graspstab.report.write_report import write_report
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+setup_logging(sm.log[0])
+write_report(
+    out_html=Path(sm.output[0]),
+    config=dict(sm.params.config),
+    figures={
+        "objects": Path(sm.input.objects_figure),
+        "hand_candidates": Path(sm.input.hand_candidates),
+        "hand_capsules": Path(sm.input.hand_capsules),
+    },
+    object_meta=[Path(p) for p in sm.input.meta],
+    hand_json=Path(sm.input.hand_json),
+    benchmark_files=[Path(p) for p in sm.input.object_benchmarks],
+)
