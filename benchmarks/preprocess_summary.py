@@ -22,13 +22,24 @@ def main(argv: list[str]) -> int:
         with open(tsv) as fh:
             b = next(csv.DictReader(fh, delimiter="\t"))
         meta = json.loads((workdir / "results" / "objects" / oid / "meta.json").read_text())
-        rows.append((oid, float(b["s"]), float(b["max_rss"]), meta["convex_parts"],
-                     meta["watertight_before"], meta["watertight_after"], meta["volume"] * 1e6))
+        rows.append(
+            (
+                oid,
+                float(b["s"]),
+                float(b["max_rss"]),
+                meta["convex_parts"],
+                meta["watertight_before"],
+                meta["watertight_after"],
+                meta["volume"] * 1e6,
+            )
+        )
     if not rows:
         print(f"no benchmark files under {bench_dir}; run the workflow first", file=sys.stderr)
         return 1
-    print(f"{'object':<22}{'wall [s]':>9}{'max RSS [MB]':>14}{'parts':>7}{'wt raw':>8}"
-          f"{'wt fixed':>10}{'vol [cm3]':>11}")
+    print(
+        f"{'object':<22}{'wall [s]':>9}{'max RSS [MB]':>14}{'parts':>7}{'wt raw':>8}"
+        f"{'wt fixed':>10}{'vol [cm3]':>11}"
+    )
     for oid, s, rss, parts, wb, wa, vol in rows:
         print(f"{oid:<22}{s:>9.1f}{rss:>14.0f}{parts:>7d}{wb!s:>8}{wa!s:>10}{vol:>11.1f}")
     total = sum(r[1] for r in rows)

@@ -12,8 +12,16 @@ from graspstab.config.validate import validate_config, validate_schema
 from tests.conftest import CONFIG_DIR, SCHEMA
 
 REFERENCE_SPLIT = {
-    "train": {"061_foam_brick", "009_gelatin_box", "014_lemon", "025_mug", "006_mustard_bottle",
-              "002_master_chef_can", "008_pudding_box", "026_sponge"},
+    "train": {
+        "061_foam_brick",
+        "009_gelatin_box",
+        "014_lemon",
+        "025_mug",
+        "006_mustard_bottle",
+        "002_master_chef_can",
+        "008_pudding_box",
+        "026_sponge",
+    },
     "val": {"013_apple", "010_potted_meat_can"},
     "test": {"016_pear", "077_rubiks_cube"},
 }
@@ -39,7 +47,12 @@ def test_default_object_set_is_reference_split(default_cfg):
 def test_reference_constants(default_cfg):
     c = default_cfg
     assert c["synthesis"]["energy"]["weights"] == {
-        "dis": 100.0, "fc": 1.0, "pen": 10.0, "spen": 100.0, "joint": 1000.0}
+        "dis": 100.0,
+        "fc": 1.0,
+        "pen": 10.0,
+        "spen": 100.0,
+        "joint": 1000.0,
+    }
     assert c["synthesis"]["annealing"]["iterations"] == 6000
     assert c["replay"]["timestep"] == 0.0005 and c["replay"]["steps"] == 40000
     assert c["labels"]["unstable_speed"] == 0.0012
@@ -54,8 +67,12 @@ def _compose(snakemake_config: dict) -> dict:
 
 def test_profile_and_nested_overrides():
     cfg = _compose(
-        {"profile": "thesis", "synthesis": {"shards": "3"}, "only_objects": ["061_foam_brick"],
-         "overrides": ["labels.window_s=0.3"]}
+        {
+            "profile": "thesis",
+            "synthesis": {"shards": "3"},
+            "only_objects": ["061_foam_brick"],
+            "overrides": ["labels.window_s=0.3"],
+        }
     )
     assert cfg["profile_name"] == "thesis"
     assert cfg["synthesis"]["shards"] == 3  # the explicit override beats the profile
@@ -65,9 +82,14 @@ def test_profile_and_nested_overrides():
 
 
 def test_override_values_keep_types():
-    cfg = _compose({"sweep": {"windows_s": ["0.1", "0.2"]}, "seed": 7,
-                    "assets": {"ycb_dir": "/tmp/some dir"},
-                    "objects": {"items": {"014_lemon": {"mass": "0.03"}}}})
+    cfg = _compose(
+        {
+            "sweep": {"windows_s": ["0.1", "0.2"]},
+            "seed": 7,
+            "assets": {"ycb_dir": "/tmp/some dir"},
+            "objects": {"items": {"014_lemon": {"mass": "0.03"}}},
+        }
+    )
     assert cfg["objects"]["items"]["014_lemon"]["mass"] == 0.03
     assert cfg["sweep"]["windows_s"] == [0.1, 0.2]
     assert cfg["seed"] == 7

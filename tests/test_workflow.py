@@ -20,8 +20,18 @@ FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_res
 
 
 def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir),
-           "--cores", "2", *args]
+    cmd = [
+        sys.executable,
+        "-m",
+        "snakemake",
+        "-s",
+        str(REPO / "Snakefile"),
+        "-d",
+        str(workdir),
+        "--cores",
+        "2",
+        *args,
+    ]
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
 
 
@@ -39,8 +49,14 @@ def run(tmp_path_factory, ycb_dir, hand_assets_dir):
 def test_one_object_end_to_end(run):
     workdir, _, _ = run
     obj = workdir / "results" / "objects" / OBJECT
-    for name in ("mesh.obj", "convex_parts.npz", "object.xml", "sdf.npz", "hull_points.npy",
-                 "meta.json"):
+    for name in (
+        "mesh.obj",
+        "convex_parts.npz",
+        "object.xml",
+        "sdf.npz",
+        "hull_points.npy",
+        "meta.json",
+    ):
         assert (obj / name).stat().st_size > 0, name
     meta = json.loads((obj / "meta.json").read_text())
     assert meta["mass"] == pytest.approx(0.028)
@@ -80,8 +96,13 @@ def test_second_run_does_nothing(run):
 @pytest.mark.workflow
 def test_bad_config_stops_at_load_time(tmp_path, ycb_dir, hand_assets_dir):
     env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    proc = _snakemake(tmp_path, "--dry-run", "--config",
-                      "objects={items: {014_lemon: {split: training}}}", env=env)
+    proc = _snakemake(
+        tmp_path,
+        "--dry-run",
+        "--config",
+        "objects={items: {014_lemon: {split: training}}}",
+        env=env,
+    )
     assert proc.returncode != 0
     out = proc.stdout + proc.stderr
     assert "014_lemon" in out and "'split'" in out

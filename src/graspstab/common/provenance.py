@@ -29,7 +29,7 @@ def file_sha256(path: str | Path, chunk: int = 1 << 20) -> str:
 
 
 def code_version(*subpackages: str) -> str:
-    """Hash of the source of the named sub-packages (plus ``common``): changes when their code does."""
+    """Hash of the named sub-packages' source (plus ``common``): changes when their code does."""
     h = hashlib.sha256()
     for name in sorted({"common", *subpackages}):
         root = _PKG_ROOT / name

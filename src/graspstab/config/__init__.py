@@ -9,8 +9,13 @@ from graspstab.config.compose import compose_config, split_snakemake_config
 from graspstab.config.errors import ConfigError
 from graspstab.config.validate import validate_config
 
-__all__ = ["ConfigError", "compose_config", "load_config", "split_snakemake_config",
-           "validate_config"]
+__all__ = [
+    "ConfigError",
+    "compose_config",
+    "load_config",
+    "split_snakemake_config",
+    "validate_config",
+]
 
 
 def load_config(
@@ -19,7 +24,7 @@ def load_config(
     snakemake_config: dict[str, Any] | None = None,
     check_files: bool = True,
 ) -> dict[str, Any]:
-    """Compose the tree with the user's ``--config``, resolve and validate it (the Snakefile's job)."""
+    """Compose the tree with the user's ``--config``, resolve and validate it (Snakefile's job)."""
     overrides, values = split_snakemake_config(snakemake_config or {}, config_dir)
     cfg = compose_config(config_dir, overrides, values)
     validate_config(cfg, schema_path, check_files=check_files)

@@ -74,8 +74,7 @@ def compose_config(
             cfg = compose(config_name="config", overrides=overrides)
     except (HydraException, OmegaConfBaseException) as exc:
         raise ConfigError(
-            f"could not compose the configuration in {config_dir} with overrides {overrides}: "
-            f"{exc}"
+            f"could not compose the configuration in {config_dir} with overrides {overrides}: {exc}"
         ) from exc
     try:
         if values:

@@ -1,4 +1,4 @@
-"""Validation of the resolved config: the JSON schema first, then object-set checks that name the entry."""
+"""Validation of the resolved config: object-set checks that name the entry, then the schema."""
 
 from __future__ import annotations
 
@@ -31,7 +31,8 @@ def validate_schema(cfg: dict[str, Any], schema_path: str | Path) -> None:
     if errors:
         lines = [f"  - {_path_str(e.absolute_path)}: {e.message}" for e in errors[:20]]
         raise ConfigError(
-            f"the configuration does not match {schema_path}:\n" + "\n".join(lines)
+            f"the configuration does not match {schema_path}:\n"
+            + "\n".join(lines)
             + "\nFix the value in config/ or in your --config override."
         )
 
@@ -42,7 +43,9 @@ def validate_objects(cfg: dict[str, Any], check_files: bool = True) -> None:
     set_name = objects.get("name", "?")
     items = objects.get("items") or {}
     if not items:
-        raise ConfigError(f"object set '{set_name}' has no objects (config/objects/{set_name}.yaml)")
+        raise ConfigError(
+            f"object set '{set_name}' has no objects (config/objects/{set_name}.yaml)"
+        )
     ycb_dir = cfg.get("assets", {}).get("ycb_dir")
     for object_id, entry in items.items():
         where = f"object '{object_id}' in object set '{set_name}' (config/objects/{set_name}.yaml)"
@@ -74,8 +77,8 @@ def validate_objects(cfg: dict[str, Any], check_files: bool = True) -> None:
             if not path.is_file():
                 raise ConfigError(
                     f"{where}, field 'mesh': {path} does not exist; the local YCB directory "
-                    f"(assets.ycb_dir / GRASPSTAB_YCB_DIR = {ycb_dir}) must hold <id>/textured.obj, "
-                    "or unset it to download the official archive"
+                    f"(assets.ycb_dir / GRASPSTAB_YCB_DIR = {ycb_dir}) must hold "
+                    "<id>/textured.obj, or unset it to download the official archive"
                 )
     only = cfg.get("only_objects")
     if only is not None:

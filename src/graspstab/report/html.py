@@ -46,8 +46,8 @@ pre{background:#f6f6f6;padding:1em;overflow-x:auto;font-size:0.85em}
 def page(title: str, sections: Sequence[str]) -> str:
     """The whole document: one file, inline CSS, no scripts, no external resources."""
     return (
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-        f"<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1">'
         f"<title>{esc(title)}</title><style>{STYLE}</style></head><body>"
         f"<h1>{esc(title)}</h1>" + "\n".join(sections) + "</body></html>\n"
     )

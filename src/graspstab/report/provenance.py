@@ -8,8 +8,18 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-PACKAGES = ("graspstab", "snakemake", "mujoco", "trimesh", "coacd", "numpy", "scipy", "torch",
-            "hydra-core", "matplotlib")
+PACKAGES = (
+    "graspstab",
+    "snakemake",
+    "mujoco",
+    "trimesh",
+    "coacd",
+    "numpy",
+    "scipy",
+    "torch",
+    "hydra-core",
+    "matplotlib",
+)
 
 
 def package_versions() -> dict[str, str]:
@@ -26,10 +36,21 @@ def package_versions() -> dict[str, str]:
 def git_commit(repo_dir: Path) -> str:
     """The commit of the workflow checkout (or 'unknown' outside git), marked dirty if modified."""
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=repo_dir, capture_output=True,
-                             text=True, check=True, timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=repo_dir, capture_output=True, text=True, timeout=10).stdout
+        sha = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=repo_dir,
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=repo_dir,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout
         return sha + ("-dirty" if dirty.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"

@@ -22,28 +22,52 @@ def _objects_section(config: dict[str, Any], metas: list[dict], bench: dict[str,
     for m in metas:
         oid = m["object_id"]
         entry = config["objects"]["items"][oid]
-        rows.append([
-            oid, entry["split"], f"{m['mass']:.4f}", f"{m['volume'] * 1e6:.1f}",
-            " x ".join(f"{e * 100:.1f}" for e in m["extents"]),
-            m["watertight_before"], m["watertight_after"], m["convex_parts"],
-            f"{bench[oid]['s']:.1f}" if oid in bench else "n/a",
-        ])
+        rows.append(
+            [
+                oid,
+                entry["split"],
+                f"{m['mass']:.4f}",
+                f"{m['volume'] * 1e6:.1f}",
+                " x ".join(f"{e * 100:.1f}" for e in m["extents"]),
+                m["watertight_before"],
+                m["watertight_after"],
+                m["convex_parts"],
+                f"{bench[oid]['s']:.1f}" if oid in bench else "n/a",
+            ]
+        )
     return H.table(
-        ["object", "split", "mass [kg]", "volume [cm3]", "extents [cm]", "watertight (raw)",
-         "watertight (repaired)", "convex parts", "preprocess wall time [s]"],
-        rows, caption="Preprocessed objects (thesis 3.1.1, split of 4.1.1)",
+        [
+            "object",
+            "split",
+            "mass [kg]",
+            "volume [cm3]",
+            "extents [cm]",
+            "watertight (raw)",
+            "watertight (repaired)",
+            "convex parts",
+            "preprocess wall time [s]",
+        ],
+        rows,
+        caption="Preprocessed objects (thesis 3.1.1, split of 4.1.1)",
     )
 
 
 def _hand_section(hand: dict[str, Any]) -> str:
-    joints = hand["joints"]
-    rows = [[j["name"], f"{j['lower']:.4f}", f"{j['upper']:.4f}"] for j in joints]
+    rows = [
+        [name, f"{lo:.4f}", f"{hi:.4f}"]
+        for name, lo, hi in zip(
+            hand["joint_names"], hand["joint_lower"], hand["joint_upper"], strict=True
+        )
+    ]
     tips = ", ".join(f"{f}: {b}" for f, b in hand["fingertips"].items())
     return (
-        f"<p>{len(joints)} actuated finger joints plus a free wrist pose; fingertips: "
-        f"{H.esc(tips)}.</p>"
-        + H.table(["joint", "lower [rad]", "upper [rad]"], rows,
-                  caption="Finger joint limits, from the ORCA v2 description files")
+        f"<p>{len(rows)} actuated finger joints plus a free wrist pose (joint "
+        f"<code>{H.esc(hand['wrist_joint'])}</code>); fingertips: {H.esc(tips)}.</p>"
+        + H.table(
+            ["joint", "lower [rad]", "upper [rad]"],
+            rows,
+            caption="Finger joint limits, from the ORCA v2 description files",
+        )
     )
 
 
@@ -68,22 +92,36 @@ def write_report(
         "reproduction of the reference's numbers.</p>",
         "<h2>Objects</h2>",
         _objects_section(config, metas, bench),
-        H.image(figures["objects"], "preprocessed objects",
-                "Preprocessed objects with their CoACD convex parts (cf. thesis fig. 3.1)."),
+        H.image(
+            figures["objects"],
+            "preprocessed objects",
+            "Preprocessed objects with their CoACD convex parts (cf. thesis fig. 3.1).",
+        ),
         "<h2>Hand and contact candidates</h2>",
         _hand_section(hand),
-        H.image(figures["hand_candidates"], "hand with contact candidates",
-                "ORCA hand with its 120 contact candidates (cf. thesis fig. 3.3)."),
-        H.image(figures["hand_capsules"], "capsule approximation",
-                "Capsule and box approximation used by the penetration energies (cf. fig. 3.5a)."),
+        H.image(
+            figures["hand_candidates"],
+            "hand with contact candidates",
+            "ORCA hand with its 120 contact candidates (cf. thesis fig. 3.3).",
+        ),
+        H.image(
+            figures["hand_capsules"],
+            "capsule approximation",
+            "Capsule and box approximation used by the penetration energies (cf. fig. 3.5a).",
+        ),
         "<h2>Provenance</h2>",
-        H.table(["item", "value"], [
-            ["config hash", cfg_hash],
-            ["git commit", git_commit(REPO_DIR)],
-            *[[f"package {k}", v] for k, v in package_versions().items()],
-        ], caption="Run provenance"),
+        H.table(
+            ["item", "value"],
+            [
+                ["config hash", cfg_hash],
+                ["git commit", git_commit(REPO_DIR)],
+                *[[f"package {k}", v] for k, v in package_versions().items()],
+            ],
+            caption="Run provenance",
+        ),
         "<details><summary>Resolved configuration</summary><pre>"
-        + H.esc(json.dumps(config, indent=2, sort_keys=True)) + "</pre></details>",
+        + H.esc(json.dumps(config, indent=2, sort_keys=True))
+        + "</pre></details>",
     ]
     write_text(out_html, H.page(config["report"]["title"], sections))
     log.info("wrote %s (%d objects)", out_html, len(metas))
