@@ -1,3 +1,3 @@
-"""graspstab: predicting grasp instability from fingertip forces (ORCA hand, YCB objects, MuJoCo)."""
+"""graspstab: predicting grasp instability from fingertip forces (ORCA hand, YCB, MuJoCo)."""
 
 __version__ = "0.1.0"
