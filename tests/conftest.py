@@ -39,3 +39,43 @@ def hand_assets_dir() -> Path:
     if not HAND_DIR.is_dir():
         raise FileNotFoundError(f"{HAND_DIR} not found (see ycb_dir)")
     return HAND_DIR
+
+
+# Fast CoACD settings for tests that need a preprocessed object but not a faithful decomposition.
+COARSE_PREPROCESS = {
+    "repair": {"sliver_max_faces": 16, "sliver_max_area_fraction": 0.01},
+    "coacd": {
+        "threshold": 0.1,
+        "max_convex_hull": 8,
+        "preprocess_resolution": 30,
+        "resolution": 500,
+        "mcts_iterations": 20,
+        "seed": 0,
+    },
+    "sdf": {"spacing": 0.0015, "margin": 0.05},
+    "hull_points": {"count": 2000, "seed": 0},
+    "contact": {"friction": [1.0, 0.005, 0.0001]},
+}
+
+
+@pytest.fixture(scope="session")
+def built_hand_dir(hand_assets_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The hand artefacts (hand.xml, hand.json, capsules.json, contact_candidates.npz), built once."""
+    from graspstab.hand.build_hand import build_hand
+    from graspstab.hand.params import DEFAULT_PARAMS
+
+    out = tmp_path_factory.mktemp("built_hand")
+    build_hand(hand_assets_dir, out, DEFAULT_PARAMS)
+    return out
+
+
+@pytest.fixture(scope="session")
+def foam_brick_dir(ycb_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The foam brick preprocessed once (mesh.obj, sdf.npz at 1.5 mm, hull_points.npy, meta.json...)."""
+    from graspstab.objects.preprocess_object import preprocess_object
+
+    out = tmp_path_factory.mktemp("object_061_foam_brick")
+    preprocess_object(
+        "061_foam_brick", ycb_dir / "061_foam_brick" / "textured.obj", out, 0.028, COARSE_PREPROCESS
+    )
+    return out

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import trimesh
+from conftest import YCB_DIR
 
-YCB_DIR = Path("/work/shared/assets/ycb")
 FOAM_BRICK = YCB_DIR / "061_foam_brick" / "textured.obj"
 
 # fast CoACD settings for tests

@@ -18,6 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from conftest import HAND_DIR, YCB_DIR
 
 from graspstab.assets import YCB_IDS, AssetError, is_known_ycb_id
 from graspstab.assets.cli import main
@@ -30,11 +31,10 @@ from graspstab.assets.hand import (
 )
 from graspstab.assets.ycb import fetch_ycb_object
 
-SHARED = Path("/work/shared/assets")
-SHARED_YCB = SHARED / "ycb"
-SHARED_HAND = SHARED / "orcahand_description"
-needs_shared_ycb = pytest.mark.skipif(not SHARED_YCB.is_dir(), reason="no shared YCB copy")
-needs_shared_hand = pytest.mark.skipif(not SHARED_HAND.is_dir(), reason="no shared hand copy")
+# The shared copies beside the checkout; tests that need them take the conftest fixtures, which
+# fail (never skip) when they are missing.
+needs_shared_ycb = pytest.mark.usefixtures("ycb_dir")
+needs_shared_hand = pytest.mark.usefixtures("hand_assets_dir")
 
 FOAM = "061_foam_brick"
 FOAM_SHA = "04a5b79997a874638c3ad71044b1ed50fae16148f9bd29629fe37caab3a71d86"
@@ -96,7 +96,7 @@ def test_catalogue() -> None:
 
 @needs_shared_ycb
 def test_catalogue_knows_shared_objects() -> None:
-    for d in SHARED_YCB.iterdir():
+    for d in YCB_DIR.iterdir():
         if d.is_dir():
             assert is_known_ycb_id(d.name)
 
@@ -107,10 +107,10 @@ def test_catalogue_knows_shared_objects() -> None:
 @needs_shared_ycb
 def test_ycb_local_copy_verified(tmp_path: Path) -> None:
     dest = tmp_path / "resources" / "ycb" / FOAM
-    record = fetch_ycb_object(FOAM, dest, local_dir=SHARED_YCB, sha256=FOAM_SHA)
+    record = fetch_ycb_object(FOAM, dest, local_dir=YCB_DIR, sha256=FOAM_SHA)
     mesh = dest / "textured.obj"
     assert mesh.is_file() and not mesh.is_symlink()
-    assert mesh.read_bytes() == (SHARED_YCB / FOAM / "textured.obj").read_bytes()
+    assert mesh.read_bytes() == (YCB_DIR / FOAM / "textured.obj").read_bytes()
     assert files_under(dest) == ["source.json", "textured.obj"]
     saved = json.loads((dest / "source.json").read_text())
     assert saved == record
@@ -284,7 +284,7 @@ def test_download_unreachable_host(tmp_path: Path) -> None:
 @needs_shared_hand
 def test_committed_manifest_matches_shared_copy() -> None:
     manifest = load_manifest()
-    assert manifest == build_manifest(SHARED_HAND)
+    assert manifest == build_manifest(HAND_DIR)
     assert all(p.endswith(".stl") for p in manifest if p not in UPSTREAM_MJCF)
     assert set(UPSTREAM_MJCF) <= set(manifest)
 
@@ -292,7 +292,7 @@ def test_committed_manifest_matches_shared_copy() -> None:
 @needs_shared_hand
 def test_hand_local_copy_verified(tmp_path: Path) -> None:
     dest = tmp_path / "resources" / "orcahand_description"
-    record = fetch_hand_description(dest, local_dir=SHARED_HAND)
+    record = fetch_hand_description(dest, local_dir=HAND_DIR)
     assert (dest / "v2" / "scene_right.xml").is_file()
     assert (dest / "LICENSE").is_file() and (dest / "SOURCES.md").is_file()
     saved = json.loads((dest / "source.json").read_text())
@@ -306,7 +306,7 @@ def test_hand_local_copy_verified(tmp_path: Path) -> None:
 @needs_shared_hand
 def test_hand_local_corrupted_stl(tmp_path: Path) -> None:
     local = tmp_path / "hand_copy"
-    shutil.copytree(SHARED_HAND, local)
+    shutil.copytree(HAND_DIR, local)
     victim = local / "v2/models/assets/right/T-DP.stl"
     victim.write_bytes(victim.read_bytes()[:-10] + b"0123456789")
     out = tmp_path / "resources"
