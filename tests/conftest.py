@@ -60,7 +60,7 @@ COARSE_PREPROCESS = {
 
 @pytest.fixture(scope="session")
 def built_hand_dir(hand_assets_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The hand artefacts (hand.xml, hand.json, capsules.json, contact_candidates.npz), built once."""
+    """The hand artefacts (hand.xml, hand.json, capsules.json, candidates), built once."""
     from graspstab.hand.build_hand import build_hand
     from graspstab.hand.params import DEFAULT_PARAMS
 
@@ -71,7 +71,7 @@ def built_hand_dir(hand_assets_dir: Path, tmp_path_factory: pytest.TempPathFacto
 
 @pytest.fixture(scope="session")
 def foam_brick_dir(ycb_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The foam brick preprocessed once (mesh.obj, sdf.npz at 1.5 mm, hull_points.npy, meta.json...)."""
+    """The foam brick preprocessed once (mesh.obj, sdf.npz at 1.5 mm, hull_points.npy, ...)."""
     from graspstab.objects.preprocess_object import preprocess_object
 
     out = tmp_path_factory.mktemp("object_061_foam_brick")
