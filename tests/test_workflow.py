@@ -17,6 +17,10 @@ from tests.conftest import REPO
 OBJECT = "061_foam_brick"
 # Coarse CoACD settings keep the toy run fast; the defaults are exercised in the 12-object run.
 FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_resolution: 30}}"
+# Two shards of three grasps, a short schedule, batches of two (so batching is exercised).
+TOY_SYNTHESIS = (
+    "synthesis={shards: 2, grasps_per_shard: 3, annealing: {iterations: 60, batch_size: 2}}"
+)
 
 
 def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
@@ -39,7 +43,7 @@ def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.Com
 def run(tmp_path_factory, ycb_dir, hand_assets_dir):
     workdir = tmp_path_factory.mktemp("wf")
     env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    config = ["--config", f"only_objects=[{OBJECT}]", FAST]
+    config = ["--config", f"only_objects=[{OBJECT}]", FAST, TOY_SYNTHESIS]
     proc = _snakemake(workdir, "results/report.html", *config, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     return workdir, env, config
@@ -65,7 +69,8 @@ def test_one_object_end_to_end(run):
     hand = workdir / "results" / "hand"
     for name in ("hand.xml", "hand.json", "capsules.json", "contact_candidates.npz"):
         assert (hand / name).is_file(), name
-    for name in ("objects.png", "hand_candidates.png", "hand_capsules.png"):
+    figures = ("objects.png", "hand_candidates.png", "hand_capsules.png", "pregrasp.png")
+    for name in (*figures, "grasp_gallery.png", "energy_histograms.png"):
         assert (workdir / "results" / "figures" / name).stat().st_size > 1000
     assert (workdir / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").is_file()
     bench = workdir / "results" / "benchmarks" / "preprocess_object" / f"{OBJECT}.tsv"
@@ -73,14 +78,29 @@ def test_one_object_end_to_end(run):
 
 
 @pytest.mark.workflow
+def test_grasp_shards_and_summary(run):
+    import polars as pl
+
+    workdir, _, _ = run
+    grasps = workdir / "results" / "grasps" / OBJECT
+    tables = [pl.read_parquet(grasps / f"shard_{k}.parquet") for k in range(2)]
+    assert [t.height for t in tables] == [3, 3]
+    ids = pl.concat(tables)["grasp_id"].to_list()
+    assert sorted(ids) == list(range(6))  # unique across shards
+    assert (pl.concat(tables)["energy"] <= pl.concat(tables)["energy_start"]).all()
+    summary = json.loads((grasps / "summary.json").read_text())
+    assert summary["grasps"] == 6 and summary["shards"] == 2
+
+
+@pytest.mark.workflow
 def test_report_is_self_contained(run):
     workdir, _, _ = run
     html = (workdir / "results" / "report.html").read_text()
-    assert OBJECT in html and "Provenance" in html
+    assert OBJECT in html and "Provenance" in html and "Grasp synthesis" in html
     # no external requests: no http(s) sources or stylesheets
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
-    assert len(images) == 3
+    assert len(images) == 6
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 

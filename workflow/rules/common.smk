@@ -22,6 +22,7 @@ CONDA_ENV = "../../envs/graspstab.yaml"
 
 wildcard_constraints:
     object=r"[0-9]{3}(-[a-z])?_[a-z0-9_]+",
+    shard=r"[0-9]+",
 
 
 def object_ids():
@@ -39,3 +40,28 @@ def object_entry(wildcards):
 def object_outputs(name):
     """One preprocessed artefact for every object of the run."""
     return expand("results/objects/{object}/{name}", object=object_ids(), name=name)
+
+
+def synthesis_params():
+    """What a shard's result depends on: everything in the synthesis group but the shard count
+    (adding shards must not rerun the existing ones)."""
+    return {k: v for k, v in config["synthesis"].items() if k != "shards"}
+
+
+def shard_tables_of(objects):
+    """Every shard table of the given objects."""
+    return expand(
+        "results/grasps/{object}/shard_{shard}.parquet",
+        object=objects,
+        shard=range(config["synthesis"]["shards"]),
+    )
+
+
+def shard_tables(wildcards):
+    """All shard tables of one object."""
+    return shard_tables_of([wildcards.object])
+
+
+def grasp_outputs(name):
+    """One synthesis artefact for every object of the run."""
+    return expand("results/grasps/{object}/{name}", object=object_ids(), name=name)

@@ -7,7 +7,8 @@ rule build_hand:
     input:
         "resources/orcahand_description",
     output:
-        **{Path(n).stem: f"results/hand/{n}" for n in HAND_OUTPUTS},
+        # keys hand_xml, hand_json, ... (the stems alone would collide: hand.xml, hand.json)
+        **{n.replace(".", "_"): f"results/hand/{n}" for n in HAND_OUTPUTS},
         meshes=directory("results/hand/meshes"),
     params:
         hand=config["hand"],

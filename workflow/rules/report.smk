@@ -1,4 +1,4 @@
-# The self-contained HTML report; at this stage it covers what exists (objects and hand).
+# The self-contained HTML report; at this stage it covers objects, hand and grasp synthesis.
 
 
 rule report:
@@ -11,6 +11,15 @@ rule report:
         object_benchmarks=expand(
             "results/benchmarks/preprocess_object/{object}.tsv", object=object_ids()
         ),
+        grasp_summaries=grasp_outputs("summary.json"),
+        anneal_benchmarks=expand(
+            "results/benchmarks/anneal_grasps/{object}_shard_{shard}.tsv",
+            object=object_ids(),
+            shard=range(config["synthesis"]["shards"]),
+        ),
+        pregrasp=rules.plot_grasps.output.pregrasp,
+        gallery=rules.plot_grasps.output.gallery,
+        histograms=rules.plot_grasps.output.histograms,
     output:
         "results/report.html",
     params:

@@ -5,4 +5,4 @@ from pathlib import Path
 from graspstab.hand.build_hand import build_hand
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-build_hand(sm.input[0], Path(sm.output.hand).parent, dict(sm.params.hand), log_file=sm.log[0])
+build_hand(sm.input[0], Path(sm.output.hand_json).parent, dict(sm.params.hand), log_file=sm.log[0])

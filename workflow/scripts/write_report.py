@@ -14,8 +14,13 @@ write_report(
         "objects": Path(sm.input.objects_figure),
         "hand_candidates": Path(sm.input.hand_candidates),
         "hand_capsules": Path(sm.input.hand_capsules),
+        "pregrasp": Path(sm.input.pregrasp),
+        "grasp_gallery": Path(sm.input.gallery),
+        "energy_histograms": Path(sm.input.histograms),
     },
     object_meta=[Path(p) for p in sm.input.meta],
     hand_json=Path(sm.input.hand_json),
     benchmark_files=[Path(p) for p in sm.input.object_benchmarks],
+    grasp_summaries=[Path(p) for p in sm.input.grasp_summaries],
+    anneal_benchmarks=[Path(p) for p in sm.input.anneal_benchmarks],
 )

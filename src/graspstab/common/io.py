@@ -70,3 +70,26 @@ def save_npy(path: str | os.PathLike[str], array: np.ndarray) -> None:
     """Save one array atomically as ``.npy`` (memory-mappable)."""
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         np.save(fh, array)
+
+
+def write_parquet(
+    path: str | os.PathLike[str], frame: Any, metadata: dict[str, Any] | None = None
+) -> None:
+    """Write a polars DataFrame as Parquet atomically; ``metadata`` goes in as JSON under
+    the schema key ``graspstab`` (e.g. the provenance of the table)."""
+    import pyarrow.parquet as pq
+
+    table = frame.to_arrow()
+    if metadata is not None:
+        extra = {b"graspstab": json.dumps(metadata, sort_keys=True, default=_json_default).encode()}
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}), **extra})
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp, compression="zstd")
+
+
+def read_parquet_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The ``graspstab`` JSON metadata written by :func:`write_parquet` (empty if none)."""
+    import pyarrow.parquet as pq
+
+    raw = (pq.read_schema(path).metadata or {}).get(b"graspstab")
+    return json.loads(raw) if raw else {}

@@ -71,6 +71,76 @@ def _hand_section(hand: dict[str, Any]) -> str:
     )
 
 
+def _synthesis_section(summaries: list[dict], anneal_bench: dict[str, dict]) -> str:
+    rows = []
+    for s in summaries:
+        oid = s["object_id"]
+        wall = sum(b["s"] for k, b in anneal_bench.items() if k.startswith(f"{oid}_shard_"))
+        rows.append(
+            [
+                oid,
+                s["grasps"],
+                f"{s['energy_start']['q50']:.1f}",
+                f"{s['energy']['q50']:.1f}",
+                f"{s['energy_fell_fraction']:.2f}",
+                f"{s['terms']['dis']['q50'] * 1000 / 120:.1f}",
+                f"{s['tip_abs_dist']['q50'] * 1000:.1f}",
+                f"{s['tips_within_5mm_mean']:.1f}",
+                f"{s['min_candidate_dist']['q05'] * 1000:.1f}",
+                f"{s['terms']['pen']['q50']:.3f}",
+                f"{s['acceptance_rate']['q50']:.2f}",
+                f"{wall:.0f}" if wall else "n/a",
+            ]
+        )
+    return H.table(
+        [
+            "object",
+            "grasps",
+            "median E start",
+            "median E best",
+            "fraction E fell",
+            "median mean |d| [mm]",
+            "median fingertip gap [mm]",
+            "fingertips within 5 mm (mean of 5)",
+            "deepest candidate, 5th pct [mm]",
+            "median E_pen",
+            "median acceptance",
+            "anneal wall time [s]",
+        ],
+        rows,
+        caption=(
+            "Synthesised grasps (3.1.3-3.1.4): energy of eq. 4 at the pre-grasp and at the best "
+            "annealing state; fingertip gap = |signed distance| of the distal-region candidate "
+            "nearest the surface; deepest candidate = most negative candidate signed distance"
+        ),
+    )
+
+
+def _synthesis_parts(
+    figures: dict[str, Path],
+    grasp_summaries: list[Path] | None,
+    anneal_benchmarks: list[Path] | None,
+) -> list[str]:
+    """The grasp-synthesis section, when the run got that far."""
+    if not grasp_summaries:
+        return []
+    bench = {Path(p).stem: read_benchmark(p) for p in anneal_benchmarks or []}
+    parts = [
+        "<h2>Grasp synthesis</h2>",
+        _synthesis_section([read_json(p) for p in grasp_summaries], bench),
+    ]
+    captions = {
+        "pregrasp": "A structured pre-grasp: inflated hull, anchor, nearest surface point, "
+        "approach direction and the open hand (cf. thesis fig. 3.4).",
+        "grasp_gallery": "Lowest-energy synthesised grasps on several objects (cf. fig. 3.6).",
+        "energy_histograms": "Energy of eq. 4 per object, at the pre-grasp and after annealing.",
+    }
+    for key, caption in captions.items():
+        if key in figures:
+            parts.append(H.image(figures[key], key.replace("_", " "), caption))
+    return parts
+
+
 def write_report(
     out_html: Path,
     config: dict[str, Any],
@@ -78,6 +148,8 @@ def write_report(
     object_meta: list[Path],
     hand_json: Path,
     benchmark_files: list[Path],
+    grasp_summaries: list[Path] | None = None,
+    anneal_benchmarks: list[Path] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced."""
     metas = [read_json(p) for p in object_meta]
@@ -87,8 +159,8 @@ def write_report(
     profile = config["profile_name"]
     sections = [
         f'<p class="note">Profile <b>{H.esc(profile)}</b>, {len(metas)} objects. This report '
-        "covers the stages built so far (objects and hand); later stages add grasps, replays, "
-        "datasets and models. A quick-profile run is a smoke test of the pipeline, not a "
+        "covers the stages built so far (objects, hand and grasp synthesis); later stages add "
+        "replays, datasets and models. A quick-profile run is a smoke test of the pipeline, not a "
         "reproduction of the reference's numbers.</p>",
         "<h2>Objects</h2>",
         _objects_section(config, metas, bench),
@@ -109,6 +181,7 @@ def write_report(
             "capsule approximation",
             "Capsule and box approximation used by the penetration energies (cf. fig. 3.5a).",
         ),
+        *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         "<h2>Provenance</h2>",
         H.table(
             ["item", "value"],

@@ -1,0 +1,18 @@
+"""Snakemake wrapper: pre-grasps and annealing for one object x shard (graspstab.synthesis)."""
+
+from pathlib import Path
+
+from graspstab.synthesis.anneal_grasps import anneal_grasps
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+anneal_grasps(
+    sm.wildcards.object,
+    Path(sm.input.meta).parent,
+    Path(sm.input.hand[0]).parent,
+    sm.output[0],
+    params=dict(sm.params.synthesis),
+    seed=int(sm.params.seed),
+    shard=int(sm.wildcards.shard),
+    threads=sm.threads,
+    log_file=sm.log[0],
+)
