@@ -42,16 +42,17 @@ def hand_assets_dir() -> Path:
 
 
 # Fast CoACD settings for tests that need a preprocessed object but not a faithful decomposition.
+COARSE_COACD = {
+    "threshold": 0.1,
+    "max_convex_hull": 8,
+    "preprocess_resolution": 30,
+    "resolution": 500,
+    "mcts_iterations": 20,
+    "seed": 0,
+}
 COARSE_PREPROCESS = {
     "repair": {"sliver_max_faces": 16, "sliver_max_area_fraction": 0.01},
-    "coacd": {
-        "threshold": 0.1,
-        "max_convex_hull": 8,
-        "preprocess_resolution": 30,
-        "resolution": 500,
-        "mcts_iterations": 20,
-        "seed": 0,
-    },
+    "coacd": COARSE_COACD,
     "sdf": {"spacing": 0.0015, "margin": 0.05},
     "hull_points": {"count": 2000, "seed": 0},
     "contact": {"friction": [1.0, 0.005, 0.0001]},

@@ -4,19 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
+from conftest import COARSE_COACD as COARSE_COACD  # re-exported for the objects tests
 from conftest import YCB_DIR
 
 FOAM_BRICK = YCB_DIR / "061_foam_brick" / "textured.obj"
-
-# fast CoACD settings for tests
-COARSE_COACD = {
-    "threshold": 0.1,
-    "max_convex_hull": 8,
-    "preprocess_resolution": 30,
-    "resolution": 500,
-    "mcts_iterations": 20,
-    "seed": 0,
-}
 
 
 def sliver(at: np.ndarray, size: float = 0.001) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,80 @@
+"""How deep synthesised grasps penetrate their object, by MuJoCo's own collision check.
+
+An independent look at the annealed grasps (3.1.4): the hand (hand.xml) and the object
+(object.xml, its CoACD parts) are put in one scene at each grasp's pose, and the deepest
+hand-object contact reported by ``mj_forward`` is collected. Prints per object the median and
+worst depth, the share of grasps deeper than 5 mm, and the hand bodies most often involved.
+
+    python benchmarks/grasp_penetration.py <workdir>
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import polars as pl
+
+from graspstab.common.io import read_json
+
+
+def scene(workdir: Path, object_id: str) -> tuple[mujoco.MjModel, int]:
+    """The hand plus the object's body (prefixed ``obj_``) in one compiled model."""
+    spec = mujoco.MjSpec.from_file(str(workdir / "results" / "hand" / "hand.xml"))
+    obj = mujoco.MjSpec.from_file(str(workdir / "results" / "objects" / object_id / "object.xml"))
+    spec.worldbody.add_frame().attach_body(obj.body("object"), "obj_", "")
+    model = spec.compile()
+    return model, model.body("obj_object").id
+
+
+def deepest_contacts(
+    model: mujoco.MjModel, object_body: int, grasps: pl.DataFrame, joint_qpos: list[int]
+) -> tuple[np.ndarray, collections.Counter]:
+    """Per grasp the most negative hand-object contact distance [m]; bodies deeper than 5 mm."""
+    data = mujoco.MjData(model)
+    depths, bodies = [], collections.Counter()
+    for row in grasps.iter_rows(named=True):
+        data.qpos[:] = model.qpos0
+        data.qpos[0:3] = [row[f"wrist_{a}"] for a in "xyz"]
+        data.qpos[3:7] = [row[f"quat_{a}"] for a in "wxyz"]
+        data.qpos[joint_qpos] = [row[f"theta_{k:02d}"] for k in range(16)]
+        mujoco.mj_forward(model, data)
+        worst: dict[str, float] = {}
+        for c in data.contact[: data.ncon]:
+            b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
+            if object_body in (b1, b2):
+                name = model.body(b2 if b1 == object_body else b1).name
+                worst[name] = min(worst.get(name, 0.0), float(c.dist))
+        depths.append(min(worst.values(), default=0.0))
+        bodies.update(k for k, v in worst.items() if v < -0.005)
+    return np.asarray(depths), bodies
+
+
+def main() -> None:
+    """Print the penetration figures of every object with grasp tables in the work directory."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("workdir", type=Path)
+    args = ap.parse_args()
+    hand = read_json(args.workdir / "results" / "hand" / "hand.json")
+    joint_qpos = [hand["joint_qpos_index"][j] for j in hand["joint_names"]]
+    print(f"{'object':22s} grasps  median [mm]  worst [mm]  >5 mm  most involved bodies")
+    for obj_dir in sorted((args.workdir / "results" / "grasps").iterdir()):
+        tables = sorted(obj_dir.glob("shard_*.parquet"))
+        if not tables:
+            continue
+        grasps = pl.concat([pl.read_parquet(t) for t in tables])
+        model, body = scene(args.workdir, obj_dir.name)
+        depths, bodies = deepest_contacts(model, body, grasps, joint_qpos)
+        mm = depths * 1000
+        top = ", ".join(f"{b.removeprefix('right_')}:{n}" for b, n in bodies.most_common(3))
+        print(
+            f"{obj_dir.name:22s} {len(mm):6d}  {np.median(mm):11.1f}  {mm.min():10.1f}  "
+            f"{np.mean(mm < -5):5.2f}  {top}"
+        )
+
+
+if __name__ == "__main__":
+    main()
