@@ -259,6 +259,10 @@ def time_annealed(args: argparse.Namespace, dtype: torch.dtype) -> None:
         ("e_pen culled", lambda: e_pen(energy.pen_points, *hand)),
         ("e_spen", lambda: spen(pose.capsule_p0, pose.capsule_p1, energy.radii, energy.pairs)),
         ("e_joint", lambda: e_joint(x[2], kin.joint_lower, kin.joint_upper)),
+        (
+            f"e_hpen ({kin.n_surface_points} points)",
+            lambda: energy.sdf.depth_sum(pose.surface_points),
+        ),
         ("GraspEnergy total", lambda: energy(*x)),
     ]
     with torch.no_grad():

@@ -46,12 +46,14 @@ def test_default_object_set_is_reference_split(default_cfg):
 
 def test_reference_constants(default_cfg):
     c = default_cfg
+    # eq. 16, but for our documented w_fc and the added w_hpen (README "Grasp synthesis")
     assert c["synthesis"]["energy"]["weights"] == {
         "dis": 100.0,
-        "fc": 1.0,
+        "fc": 0.01,
         "pen": 10.0,
         "spen": 100.0,
         "joint": 1000.0,
+        "hpen": 10000.0,
     }
     assert c["synthesis"]["annealing"]["iterations"] == 6000
     assert c["replay"]["timestep"] == 0.0005 and c["replay"]["steps"] == 40000

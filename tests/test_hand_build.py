@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import ConvexHull
 
 from graspstab.common.io import read_json
 from graspstab.hand import names
@@ -19,7 +20,8 @@ from graspstab.hand.candidates import contact_candidates
 from graspstab.hand.capsules import capsule_pairs
 from graspstab.hand.figure import plot_candidates, plot_capsules
 from graspstab.hand.kinematics import HandKinematics
-from graspstab.hand.meshes import body_collision_mesh
+from graspstab.hand.meshes import body_collision_mesh, collision_geoms, geom_mesh
+from graspstab.hand.surface_points import farthest_point_cover, hand_surface_points
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -216,6 +218,42 @@ def test_candidates_deterministic(cands: dict[str, np.ndarray], model: mujoco.Mj
     other = contact_candidates(model, {**DEFAULT_PARAMS, "candidates": {
         **DEFAULT_PARAMS["candidates"], "seed": 1}})  # fmt: skip
     assert not np.array_equal(other["points"], cands["points"])
+
+
+def test_surface_points_cover_every_colliding_hull(hand_dir: Path, model: mujoco.MjModel) -> None:
+    with np.load(hand_dir / "surface_points.npz") as npz:
+        points, bodies = npz["points"], npz["body"].astype(str)
+    radius = DEFAULT_PARAMS["surface_points"]["cover_radius"]
+    colliding = {model.body(b).name for b in range(1, model.nbody) if collision_geoms(
+        model, model.body(b).name)}  # fmt: skip
+    assert set(bodies) == colliding and len(colliding) == 17
+    for body in colliding:
+        own = points[bodies == body]
+        verts = [geom_mesh(model, g)[0] for g in collision_geoms(model, body)]
+        # every point lies on the surface of one of the body's geom hulls: the largest of the
+        # hull's half-space values n.x + b is 0 there (negative inside, positive outside)
+        halfspaces = [ConvexHull(v).equations for v in verts]
+        on_hull = np.min([np.abs((own @ e[:, :3].T + e[:, 3]).max(1)) for e in halfspaces], 0)
+        assert on_hull.max() < 1e-9, body
+        hulls = [trimesh.convex.convex_hull(v) for v in verts]
+        # an independent sample of the hulls lies within the cover radius of a kept point, up
+        # to the spacing of the dense sample the cover was thinned from (50 per cm^2: ~1.4 mm)
+        for h in hulls:
+            probe = trimesh.sample.sample_surface(h, 2000, seed=7)[0]
+            gap = np.linalg.norm(probe[:, None] - own[None], axis=2).min(1)
+            assert gap.max() <= radius + 0.001, body
+    again = hand_surface_points(model, DEFAULT_PARAMS["surface_points"])
+    assert np.array_equal(again["points"], points)
+
+
+def test_farthest_point_cover() -> None:
+    line = np.c_[np.linspace(0, 1, 101), np.zeros(101), np.zeros(101)]
+    keep = farthest_point_cover(line, 0.1)
+    gaps = np.abs(line[:, :1] - line[keep, 0][None]).min(1)
+    # by hand: after 0, 1, 0.5, 0.25, 0.75 the gaps are 0.125 > 0.1, so the four eighths follow
+    assert keep.tolist() == [0, 100, 50, 25, 75, 12, 37, 62, 87]
+    assert gaps.max() <= 0.1
+    assert len(farthest_point_cover(line, 2.0)) == 1
 
 
 def test_kinematics(hand_dir: Path, cands: dict[str, np.ndarray]) -> None:

@@ -16,6 +16,7 @@ from graspstab.common.io import read_parquet_metadata
 from graspstab.synthesis.anneal_grasps import (
     DIAGNOSTIC_COLUMNS,
     ENERGY_COLUMNS,
+    FINGERS,
     POSE_COLUMNS,
     anneal_grasps,
     shard_seeds,
@@ -144,3 +145,23 @@ def test_seeds_differ_by_object_shard_and_seed() -> None:
     base = first(0, OBJECT, 0)
     assert base == first(0, OBJECT, 0)
     assert len({base, first(1, OBJECT, 0), first(0, "014_lemon", 0), first(0, OBJECT, 1)}) == 4
+
+
+def test_acceptance_fingertips_close_without_deep_penetration(
+    foam_brick_dir: Path, built_hand_dir: Path, tmp_path: Path
+) -> None:
+    """Issue acceptance at the thesis schedule (6000 iterations), 8 grasps of the foam brick: our
+    energy brings fingertips close without sinking the hand in; the reference's weights (w_fc = 1,
+    no E_hpen) sink it by more than 5 mm, the failure that motivates both deviations."""
+    params = _params(8, DEFAULTS["annealing"]["iterations"], 8)
+    ours = anneal_grasps(OBJECT, foam_brick_dir, built_hand_dir, tmp_path / "o.pq", params, 0, 0)
+    tips = np.abs(np.stack([ours[f"tip_dist_{f}"].to_numpy() for f in FINGERS], axis=1))
+    assert ours["energy"].median() < 0.3 * ours["energy_start"].median()
+    assert ours["max_hand_depth"].median() < 0.002  # [m], true mesh
+    assert ours["max_hand_depth"].max() < 0.005
+    assert np.median((tips < 0.005).sum(axis=1)) >= 2  # fingertips within 5 mm
+    assert np.median(tips) < 0.008
+    reference = yaml.safe_load(yaml.safe_dump(params))
+    reference["energy"]["weights"].update(fc=1.0, hpen=0.0)
+    ref = anneal_grasps(OBJECT, foam_brick_dir, built_hand_dir, tmp_path / "r.pq", reference, 0, 0)
+    assert ref["max_hand_depth"].median() > 0.005

@@ -16,6 +16,7 @@ from graspstab.synthesis.energy import (
     PenetrationPoints,
     e_dis,
     e_fc,
+    e_hpen,
     e_joint,
     e_pen,
     e_pen_dense,
@@ -148,6 +149,34 @@ def test_torch_sdf_float64_bitwise_semantics_on_exact_grid(brick_grid: SDFGrid) 
     assert np.allclose(np.linalg.norm(n.numpy(), axis=1), 1.0)
 
 
+def test_depth_sum_equals_e_hpen_of_query(brick_grid: SDFGrid) -> None:
+    """The fused, block-culled kernel of E_hpen against the plain sum over a full query."""
+    rng = np.random.default_rng(5)
+    mid = 0.5 * (brick_grid.origin + brick_grid.upper)
+    # half near the object (many inside), half anywhere in and around the grid box
+    near = mid + rng.normal(scale=0.02, size=(3000, 3))
+    pts = np.concatenate([near, _box_points(brick_grid, 3000, seed=6)]).reshape(20, 300, 3)
+    for dtype, tol in ((F64, 1e-12), (torch.float32, 1e-6)):
+        sdf = TorchSDF.from_grid(brick_grid, dtype=dtype)
+        x = torch.as_tensor(pts, dtype=dtype)
+        expected = e_hpen(sdf.query(x)[0])
+        got = sdf.depth_sum(x)
+        assert got.dtype == dtype and got.shape == (20,)
+        assert (expected > 0).all()
+        np.testing.assert_allclose(got.double().numpy(), expected.double().numpy(), rtol=tol)
+    # the blocks are conservative: no node below a block's minimum, and some blocks are skipped
+    sdf = TorchSDF.from_grid(brick_grid, dtype=F64)
+    block = sdf.block_min
+    values = brick_grid.values
+    nx, ny, nz = (n - 1 for n in values.shape)  # cells per axis
+    i, j, k = (np.arange(n) // 4 for n in (nx, ny, nz))  # cell -> block
+    corner = np.minimum.reduce(
+        [values[a : a + nx, b : b + ny, c : c + nz] for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+    )
+    assert np.all(block[np.ix_(i, j, k)] <= corner)
+    assert 0.3 < np.mean(block >= 0) < 1.0
+
+
 # ---------------------------------------------------------------------------------------------
 # E_dis (eq. 5)
 
@@ -228,10 +257,11 @@ def test_e_joint_linear_violation() -> None:
 
 def test_total_energy_weights_and_keys() -> None:
     terms = {k: torch.full((2,), float(i + 1), dtype=F64) for i, k in enumerate(WEIGHT_KEYS)}
-    weights = dict(zip(WEIGHT_KEYS, (100.0, 1.0, 10.0, 100.0, 1000.0), strict=True))  # eq. 16
+    # eq. 16's weights, then w_hpen
+    weights = dict(zip(WEIGHT_KEYS, (100.0, 1.0, 10.0, 100.0, 1000.0, 7.0), strict=True))
     out = total_energy(terms, weights)
     assert out.shape == (2,)
-    assert float(out[0]) == 100 * 1 + 1 * 2 + 10 * 3 + 100 * 4 + 1000 * 5
+    assert float(out[0]) == 100 * 1 + 1 * 2 + 10 * 3 + 100 * 4 + 1000 * 5 + 7 * 6
     with pytest.raises(KeyError, match="spen"):
         total_energy(terms, {k: v for k, v in weights.items() if k != "spen"})
     with pytest.raises(KeyError, match="bogus"):
@@ -507,3 +537,49 @@ def test_every_term_batched_equals_single(foam_brick_dir: Path, brick_hull: np.n
         single = all_terms(slice(g, g + 1))
         for i, (x, y) in enumerate(zip(batched, single, strict=True)):
             torch.testing.assert_close(x[g : g + 1], y, rtol=1e-13, atol=1e-15, msg=f"term {i}")
+
+
+# ---------------------------------------------------------------------------------------------
+# E_hpen (our addition: hand surface points inside the object)
+
+
+def test_e_hpen_hand_computed() -> None:
+    dist = torch.tensor([[-0.002, 0.001, -0.003, 0.0], [0.01, 0.02, 0.03, 0.04]], dtype=F64)
+    np.testing.assert_allclose(e_hpen(dist).numpy(), [0.005, 0.0], atol=1e-15)
+
+
+def test_e_hpen_sees_a_link_wholly_inside_where_e_pen_is_blind() -> None:
+    """A capsule buried in a ball: eq. 11 (ball surface points inside the hand) is 0, E_hpen is
+    not, and on the grid it equals the analytic depth sum ``sum max(R - |x|, 0)``."""
+    radius_ball, r_cap = 0.05, 0.008
+    ball = trimesh.creation.icosphere(subdivisions=5, radius=radius_ball)
+    sdf = TorchSDF.from_grid(SDFGrid.build(ball, spacing=0.0015, margin=0.02), dtype=F64)
+    rng = np.random.default_rng(0)
+    surface = trimesh.sample.sample_surface(ball, 2000, seed=1)[0]
+    # a capsule through the ball's centre, 3 cm long, and points on its surface
+    p0, p1 = np.array([-0.015, 0.0, 0.0]), np.array([0.015, 0.0, 0.0])
+    t = rng.uniform(0, 1, 300)
+    direction = rng.normal(size=(300, 3))
+    direction[:, 0] = 0.0
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    hand_points = p0 + t[:, None] * (p1 - p0) + r_cap * direction
+    pen = e_pen(
+        PenetrationPoints(surface, 8, F64),
+        torch.as_tensor(p0[None, None]),
+        torch.as_tensor(p1[None, None]),
+        torch.tensor([r_cap], dtype=F64),
+        torch.tensor([[1.0, 1.0, 1.0]], dtype=F64),  # palm box far away
+        torch.eye(3, dtype=F64)[None],
+        torch.tensor([0.001, 0.001, 0.001], dtype=F64),
+    )
+    assert float(pen[0]) == 0.0
+    dist = sdf.query(torch.as_tensor(hand_points[None]))[0]
+    expected = np.maximum(radius_ball - np.linalg.norm(hand_points, axis=1), 0).sum()
+    got = float(e_hpen(dist)[0])
+    assert got > 0.0
+    # the icosphere's facets sit up to ~0.05 mm inside the true sphere; grid error < 0.85 mm
+    assert abs(got - expected) < 300 * 1e-3
+    assert abs(got - expected) / expected < 0.03
+    # moved out of the ball, the capsule costs nothing
+    far = torch.as_tensor(hand_points[None] + np.array([0.2, 0.0, 0.0]))
+    assert float(e_hpen(sdf.query(far)[0])[0]) == 0.0

@@ -20,6 +20,7 @@ POSE_FIELDS = (
     "body_rot",
     "candidates",
     "candidate_normals",
+    "surface_points",
     "capsule_p0",
     "capsule_p1",
     "box_center",
@@ -105,6 +106,20 @@ def test_candidates_match_mujoco(ref: HandKinematics, batch: tuple) -> None:
         assert np.abs(pose.candidate_normals[b].numpy() - normals).max() < TOL
     norms = pose.candidate_normals.norm(dim=-1)
     assert torch.allclose(norms, torch.ones_like(norms), atol=1e-9)
+
+
+def test_surface_points_match_mujoco(
+    ref: HandKinematics, built_hand_dir: Path, batch: tuple
+) -> None:
+    with np.load(built_hand_dir / "surface_points.npz") as npz:
+        local, bodies = npz["points"], npz["body"].astype(str)
+    (pos, r6, joints), pose = batch
+    rot = rot6d_to_matrix(r6).numpy()
+    assert pose.surface_points.shape == (len(pos), len(local), 3)
+    for b in range(len(pos)):
+        links = ref.link_poses(pos[b].numpy(), _mujoco_quat(rot[b]), joints[b].numpy())
+        world = [links[n][0] + links[n][1] @ x for n, x in zip(bodies, local, strict=True)]
+        assert np.abs(pose.surface_points[b].numpy() - world).max() < TOL
 
 
 def test_capsules_box_and_palm_points_match_mujoco_poses(

@@ -1,6 +1,12 @@
 # The ORCA hand model (thesis 3.1.1-3.1.2): MjSpec build, capsules, 120 contact candidates.
 
-HAND_OUTPUTS = ["hand.xml", "hand.json", "capsules.json", "contact_candidates.npz"]
+HAND_OUTPUTS = [
+    "hand.xml",
+    "hand.json",
+    "capsules.json",
+    "contact_candidates.npz",
+    "surface_points.npz",
+]
 
 
 rule build_hand:

@@ -22,12 +22,13 @@ from graspstab.hand.kinematics import CANDIDATES_FILE
 from graspstab.hand.model import HAND_XML, MESH_SUBDIR, build_hand_spec, save_hand
 from graspstab.hand.palm import palm_geometry
 from graspstab.hand.params import DEFAULT_PARAMS, resolve_params
+from graspstab.hand.surface_points import SURFACE_POINTS_FILE, hand_surface_points
 
 __all__ = ["DEFAULT_PARAMS", "build_hand", "main"]
 
 HAND_JSON = "hand.json"
 CAPSULES_JSON = "capsules.json"
-OUTPUTS = (HAND_XML, MESH_SUBDIR, HAND_JSON, CAPSULES_JSON, CANDIDATES_FILE)
+OUTPUTS = (HAND_XML, MESH_SUBDIR, HAND_JSON, CAPSULES_JSON, CANDIDATES_FILE, SURFACE_POINTS_FILE)
 
 log = logging.getLogger("graspstab.hand")
 
@@ -114,6 +115,10 @@ def build_hand(
     cands = contact_candidates(model, p)
     save_npz(out / CANDIDATES_FILE, **cands)
     log.info("%d contact candidates in %d regions", len(cands["points"]), len(cands["region_body"]))
+
+    surface = hand_surface_points(model, p["surface_points"])
+    save_npz(out / SURFACE_POINTS_FILE, **surface)
+    log.info("%d surface points cover the colliding links", len(surface["points"]))
 
     meta = {**hand_metadata(model, p, palm), "provenance": prov}
     write_json(out / HAND_JSON, meta)

@@ -20,6 +20,7 @@ DEFAULT_PARAMS: dict[str, Any] = {
         "surface_samples": 4000,
         "seed": 0,
     },
+    "surface_points": {"cover_radius": 0.005, "samples_per_cm2": 50, "seed": 0},
     "grasp_focus_offset": 0.04,
 }
 

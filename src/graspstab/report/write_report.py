@@ -88,6 +88,8 @@ def _synthesis_section(summaries: list[dict], anneal_bench: dict[str, dict]) -> 
                 f"{s['tips_within_5mm_mean']:.1f}",
                 f"{s['min_candidate_dist']['q50'] * 1000:.1f} / "
                 f"{s['min_candidate_dist']['q05'] * 1000:.1f}",
+                f"{s['max_hand_depth']['q50'] * 1000:.1f} / "
+                f"{s['max_hand_depth']['q95'] * 1000:.1f}",
                 f"{s['terms']['pen']['q50']:.3f}",
                 f"{s['acceptance_rate']['q50']:.2f}",
                 f"{wall:.0f}" if wall else "n/a",
@@ -104,15 +106,18 @@ def _synthesis_section(summaries: list[dict], anneal_bench: dict[str, dict]) -> 
             "median fingertip gap [mm]",
             "fingertips within 5 mm (mean of 5)",
             "deepest candidate, median / 5th pct [mm]",
+            "deepest hand point, median / 95th pct [mm]",
             "median E_pen",
             "median acceptance",
             "anneal wall time [s]",
         ],
         rows,
         caption=(
-            "Synthesised grasps (3.1.3-3.1.4): energy of eq. 4 at the pre-grasp and at the best "
-            "annealing state; fingertip gap = |signed distance| of the distal-region candidate "
-            "nearest the surface; deepest candidate = most negative candidate signed distance"
+            "Synthesised grasps (3.1.3-3.1.4): energy of eq. 4 (with our w_fc and E_hpen) at the "
+            "pre-grasp and at the best annealing state; fingertip gap = |signed distance| of the "
+            "distal-region candidate nearest the surface; deepest candidate = most negative "
+            "candidate signed distance; deepest hand point = depth of the deepest point covering "
+            "the hand's collision hulls inside the object (true mesh)"
         ),
     )
 
@@ -129,10 +134,12 @@ def _synthesis_parts(
     parts = [
         "<h2>Grasp synthesis</h2>",
         _synthesis_section([read_json(p) for p in grasp_summaries], bench),
-        '<p class="note">A negative deepest-candidate distance means the hand reaches inside the '
-        "object. With the reference's energy (E_dis over all 120 candidates) the annealed "
-        "grasps straddle the surface: fingertips end within about a millimetre of it while "
-        "finger links sink in by centimetres (see README, known limitation).</p>",
+        '<p class="note">Two deliberate deviations from eq. 16 (README, "Grasp synthesis"): with '
+        "the reference's energy the annealed grasps straddle the surface, fingertips within a "
+        "millimetre of it while finger links sink in by centimetres, because E_fc over all 120 "
+        "candidate normals rewards pushing candidates through the object and eq. 11 cannot see "
+        "a link wholly inside it. We weight E_fc by 0.01 instead of 1 and add E_hpen (hand "
+        "surface points inside the object, weight 10,000).</p>",
     ]
     captions = {
         "pregrasp": "A structured pre-grasp: inflated hull, anchor, nearest surface point, "

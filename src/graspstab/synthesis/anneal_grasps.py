@@ -39,7 +39,11 @@ POSE_COLUMNS = (
 )
 ENERGY_COLUMNS = [f"e_{t}" for t in TERMS] + ["energy", "energy_start", "acceptance_rate"]
 FINGERS = ("thumb", "index", "middle", "ring", "little")
-DIAGNOSTIC_COLUMNS = [f"tip_dist_{f}" for f in FINGERS] + ["min_candidate_dist", "best_iteration"]
+DIAGNOSTIC_COLUMNS = [f"tip_dist_{f}" for f in FINGERS] + [
+    "min_candidate_dist",
+    "max_hand_depth",
+    "best_iteration",
+]
 
 
 def object_key(object_id: str) -> int:
@@ -68,6 +72,7 @@ def grasp_table(
     cand_dist: np.ndarray,
     cand_finger: np.ndarray,
     cand_distal: np.ndarray,
+    hand_depth: np.ndarray,
 ) -> pl.DataFrame:
     """Assemble the per-grasp rows (see the module docstring)."""
     quat = rot6d_to_quat(torch.as_tensor(result.rot6d, dtype=torch.float64)).numpy()
@@ -87,6 +92,7 @@ def grasp_table(
         mask = (cand_finger == finger) & cand_distal
         cols[f"tip_dist_{finger}"] = _signed_nearest(cand_dist[:, mask])
     cols["min_candidate_dist"] = cand_dist.min(axis=1)
+    cols["max_hand_depth"] = hand_depth.max(axis=1)
     cols["best_iteration"] = result.best_iteration.astype(np.int64)
     return pl.DataFrame(cols)
 
@@ -148,6 +154,7 @@ def anneal_grasps(
             joints = torch.as_tensor(result.joints, dtype=dtype)
             terms = energy.terms(*state, joints)
             cand_dist = energy.candidate_distances(*state, joints)
+            hand_depth = energy.hand_depths(*state, joints)
         frames.append(
             grasp_table(
                 object_id,
@@ -159,6 +166,7 @@ def anneal_grasps(
                 cand_dist.to(torch.float64).numpy(),
                 cand_finger,
                 cand_distal,
+                hand_depth.to(torch.float64).numpy(),
             )
         )
     table = pl.concat(frames)

@@ -26,8 +26,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-WEIGHT_KEYS: tuple[str, ...] = ("dis", "fc", "pen", "spen", "joint")
-"""Names of the energy terms in the order of eq. (4) (and of the weights of eq. 16)."""
+WEIGHT_KEYS: tuple[str, ...] = ("dis", "fc", "pen", "spen", "joint", "hpen")
+"""Names of the energy terms: eq. (4)'s order (weights of eq. 16), then our hand-penetration term
+``hpen`` (:func:`e_hpen`, a documented deviation; weight 0 gives the reference's energy)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -55,8 +56,18 @@ def e_joint(theta: Tensor, lower: Tensor, upper: Tensor) -> Tensor:
     return ((theta - upper).clamp_min(0) + (lower - theta).clamp_min(0)).sum(-1)
 
 
+def e_hpen(hand_dist: Tensor) -> Tensor:
+    """Hand-in-object penetration: ``sum_x max(-d(x), 0)`` over hand surface points, ``(B, S)``.
+
+    ``hand_dist`` is the object's signed distance (negative inside) at the points covering the
+    hand's collision hulls, so each summand is how deep one point lies inside the object. Not in
+    the reference: eq. (11)'s other direction (:mod:`graspstab.hand.surface_points` says why).
+    """
+    return (-hand_dist).clamp_min(0).sum(-1)
+
+
 def total_energy(terms: Mapping[str, Tensor], weights: Mapping[str, float]) -> Tensor:
-    """Weighted sum of eq. (4); ``terms`` and ``weights`` are keyed by :data:`WEIGHT_KEYS`.
+    """Weighted sum of eq. (4) plus ``w_hpen E_hpen``, keyed by :data:`WEIGHT_KEYS`.
 
     The thesis weights (100, 1, 10, 100, 1000) of eq. (16) live in the config, not here.
     """

@@ -62,7 +62,7 @@ def _segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.nda
 
 
 class ReferenceEnergy:
-    """E(g) of eq. 4 for one grasp at a time, written plainly from the thesis equations."""
+    """E(g) of eq. 4 (plus E_hpen) for one grasp at a time, written plainly from the equations."""
 
     def __init__(self, object_dir: str | Path, hand_dir: str | Path, weights: dict) -> None:
         self.kin = HandKinematics(hand_dir)
@@ -72,6 +72,9 @@ class ReferenceEnergy:
         self.capsules = caps["capsules"]
         self.box = caps["palm_box"]
         self.pairs = [tuple(p) for p in caps["pairs"]]
+        with np.load(Path(hand_dir) / "surface_points.npz") as npz:
+            self.surface_points = np.asarray(npz["points"], dtype=np.float64)
+            self.surface_body = [str(b) for b in npz["body"]]
         hand = read_json(Path(hand_dir) / "hand.json")
         self.lower = np.asarray(hand["joint_lower"])
         self.upper = np.asarray(hand["joint_upper"])
@@ -120,8 +123,19 @@ class ReferenceEnergy:
         e_joint = float(
             np.sum(np.maximum(q - self.upper, 0) + np.maximum(self.lower - q, 0))
         )  # eq. 14
-        out = {"dis": e_dis, "fc": e_fc, "pen": e_pen, "spen": e_spen, "joint": e_joint}
-        out["total"] = sum(self.weights[k] * out[k] for k in ("dis", "fc", "pen", "spen", "joint"))
+        # our addition: hand surface points inside the object (eq. 11 the other way round)
+        world = np.array(
+            [
+                poses[b][0] + poses[b][1] @ x
+                for b, x in zip(self.surface_body, self.surface_points, strict=True)
+            ]
+        )
+        e_hpen = float(np.sum(np.maximum(-self.sdf.query(world)[0], 0)))
+        out = {
+            "dis": e_dis, "fc": e_fc, "pen": e_pen, "spen": e_spen, "joint": e_joint,
+            "hpen": e_hpen,
+        }  # fmt: skip
+        out["total"] = sum(self.weights[k] * out[k] for k in list(out))
         return out
 
     def __call__(self, wrist_pos: np.ndarray, rot6d: np.ndarray, joints: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""The total grasp energy E(g) of eq. 4 for one object and the hand, batched over grasps."""
+"""The total grasp energy E(g) of eq. 4 (plus our E_hpen) for one object and the hand, batched."""
 
 from __future__ import annotations
 
@@ -11,11 +11,13 @@ from graspstab.synthesis import energy as E
 from graspstab.synthesis.kinematics import BatchedHandKinematics
 from graspstab.synthesis.sdf_torch import TorchSDF
 
-TERMS = ("dis", "fc", "pen", "spen", "joint")
+TERMS = E.WEIGHT_KEYS
 
 
 class GraspEnergy:
-    """E(g) = w_dis E_dis + w_fc E_fc + w_pen E_pen + w_spen E_spen + w_joint E_joint (3.1.4)."""
+    """E(g) = w_dis E_dis + w_fc E_fc + w_pen E_pen + w_spen E_spen + w_joint E_joint (3.1.4),
+    plus w_hpen E_hpen (hand surface points inside the object; our addition, README "Grasp
+    synthesis")."""
 
     def __init__(
         self,
@@ -74,6 +76,8 @@ class GraspEnergy:
             ),
             "spen": E.e_spen(pose.capsule_p0, pose.capsule_p1, self.radii, self.pairs),
             "joint": E.e_joint(joints, self.kin.joint_lower, self.kin.joint_upper),
+            # E_hpen (our addition) = e_hpen(sdf.query(surface points)), fused in one kernel
+            "hpen": self.sdf.depth_sum(pose.surface_points),
         }
         terms["total"] = E.total_energy(terms, self.weights)
         return terms
@@ -83,6 +87,13 @@ class GraspEnergy:
     ) -> torch.Tensor:
         """The total energy (B,), the annealer's objective."""
         return self.terms(wrist_pos, rot6d, joints)["total"]
+
+    def hand_depths(
+        self, wrist_pos: torch.Tensor, rot6d: torch.Tensor, joints: torch.Tensor
+    ) -> torch.Tensor:
+        """Depth of each hand surface point inside the object, ``-d`` (B, S) [m], < 0 outside."""
+        pose = self.kin.forward(wrist_pos, rot6d, joints)
+        return -self.sdf.query(pose.surface_points)[0]
 
     def candidate_distances(
         self, wrist_pos: torch.Tensor, rot6d: torch.Tensor, joints: torch.Tensor

@@ -2,7 +2,8 @@
 
 Grasp synthesis (thesis 3.1.3-3.1.4) evaluates g = (P, R, theta) (eq. 2) for a whole batch of chains
 per step; MuJoCo's ``mj_kinematics`` poses one hand at a time. This module reads the hand stage's
-artefacts (``hand.xml``, ``hand.json``, ``capsules.json``, ``contact_candidates.npz``) once and
+artefacts (``hand.xml``, ``hand.json``, ``capsules.json``, ``contact_candidates.npz``,
+``surface_points.npz``) once and
 poses B hands with a handful of batched tensor operations:
 
 * every body's local transform (4 x 4, parent frame) is an affine function of ``sin(q)`` and
@@ -10,7 +11,8 @@ poses B hands with a handful of batched tensor operations:
   one shot, with MuJoCo's off-centre joint anchors (``jnt_pos``) folded in;
 * bodies are grouped by tree depth and each depth is one batched product with its parents' poses
   (five products for the ORCA hand), never a Python loop over grasps or bodies;
-* the contact candidates (3.1.2), capsule ends, palm box centre, grasp focus and palm normal are
+* the contact candidates (3.1.2), hand surface points, capsule ends, palm box centre, grasp focus
+  and palm normal are
   homogeneous points/directions of their bodies, mapped to the world by one batched GEMM per kind.
 
 Internally frames are stored grasp-last (``[body, column, row, grasp]``), which turns the tiny
@@ -39,6 +41,7 @@ HAND_XML = "hand.xml"
 HAND_JSON = "hand.json"
 CAPSULES_JSON = "capsules.json"
 CANDIDATES_NPZ = "contact_candidates.npz"
+SURFACE_NPZ = "surface_points.npz"
 
 
 @dataclass
@@ -49,6 +52,7 @@ class HandPose:
     body_rot: Tensor  # (B, nbody, 3, 3) body rotations (columns = body axes in world)
     candidates: Tensor  # (B, 120, 3) contact candidates p_i (3.1.2)
     candidate_normals: Tensor  # (B, 120, 3) their outward unit normals
+    surface_points: Tensor  # (B, S, 3) points covering the links' collision hulls (for E_hpen)
     capsule_p0: Tensor  # (B, K, 3) capsule segment ends, capsules.json order
     capsule_p1: Tensor  # (B, K, 3)
     box_center: Tensor  # (B, 3) palm box centre
@@ -134,6 +138,14 @@ class BatchedHandKinematics:
             cand_points = np.asarray(npz["points"], dtype=np.float64)
             cand_normals = np.asarray(npz["normals"], dtype=np.float64)
             cand_bodies = [str(b) for b in npz["body"]]
+        surface_path = self.hand_dir / SURFACE_NPZ
+        if not surface_path.is_file():
+            raise FileNotFoundError(
+                f"{surface_path} not found: rebuild the hand (rule build_hand) to write it"
+            )
+        with np.load(surface_path) as npz:
+            surface_points = np.asarray(npz["points"], dtype=np.float64)
+            surface_bodies = [str(b) for b in npz["body"]]
 
         model = mujoco.MjModel.from_xml_path(str(xml))
         self.model = model
@@ -237,6 +249,9 @@ class BatchedHandKinematics:
         cand_body = np.array([self.body_index(b) for b in cand_bodies], dtype=int)
         self.candidate_body = torch.as_tensor(cand_body, dtype=torch.long)
         self.n_candidates = len(cand_body)
+        surface_body = np.array([self.body_index(b) for b in surface_bodies], dtype=int)
+        self.surface_body = torch.as_tensor(surface_body, dtype=torch.long)
+        self.n_surface_points = len(surface_body)
         self.n_capsules = len(capsules)
 
         # homogeneous points (w = 1) and directions (w = 0), grouped by body for batched products
@@ -247,6 +262,7 @@ class BatchedHandKinematics:
         specs = {
             "candidates": (homogeneous(cand_points, 1.0), cand_body),
             "normals": (homogeneous(cand_normals, 0.0), cand_body),
+            "surface": (homogeneous(surface_points, 1.0), surface_body),
             "p0": (homogeneous(cap_p0, 1.0), cap_body),
             "p1": (homogeneous(cap_p1, 1.0), cap_body),
             # palm box centre, grasp focus (points) and palm normal (a direction)
@@ -431,6 +447,7 @@ class BatchedHandKinematics:
             body_rot=poses[:, :3].permute(3, 0, 2, 1),
             candidates=points("candidates"),
             candidate_normals=points("normals"),
+            surface_points=points("surface"),
             capsule_p0=points("p0"),
             capsule_p1=points("p1"),
             box_center=extras[:, 0],

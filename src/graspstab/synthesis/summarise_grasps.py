@@ -31,7 +31,7 @@ def _quantiles(values: np.ndarray) -> dict[str, float]:
 
 
 def summarise(table: pl.DataFrame) -> dict[str, Any]:
-    """The energy distribution (start and best) and how close the fingertips come to the surface."""
+    """The energy distribution (start and best), fingertip gaps and how deep the hand reaches in."""
     tips = np.stack([table[f"tip_dist_{f}"].to_numpy() for f in FINGERS], axis=1)
     out: dict[str, Any] = {
         "grasps": table.height,
@@ -45,6 +45,8 @@ def summarise(table: pl.DataFrame) -> dict[str, Any]:
         # fingertip gap: |signed distance| of the distal candidate nearest the surface
         "tip_abs_dist": _quantiles(np.abs(tips).ravel()),
         "min_candidate_dist": _quantiles(table["min_candidate_dist"].to_numpy()),
+        # deepest hand surface point inside the object (true mesh), E_hpen's diagnostic
+        "max_hand_depth": _quantiles(table["max_hand_depth"].to_numpy()),
     }
     for tol in TIP_TOLERANCES:
         mm = f"{tol * 1000:g}mm"
