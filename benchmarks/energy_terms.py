@@ -39,8 +39,9 @@ from graspstab.synthesis.energy import (
 )
 from graspstab.synthesis.sdf_torch import TorchSDF
 
-DEFAULT_OBJECT = Path("/tmp/full12/results/objects/061_foam_brick")
-DEFAULT_HAND = Path("/tmp/hand")
+# the workflow's outputs, relative to the working directory (run from the repository root)
+DEFAULT_OBJECT = Path("results/objects/061_foam_brick")
+DEFAULT_HAND = Path("results/hand")
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -119,6 +119,18 @@ def _load_json(path: Path) -> dict:
     return json.loads(path.read_text())
 
 
+def _load_points(path: Path, *extra: str) -> dict:
+    """Body-frame ``points`` (float64), ``extra`` arrays and ``body`` names of a hand npz."""
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"{path} not found: pass the hand stage's output directory (rule build_hand)"
+        )
+    with np.load(path) as npz:
+        out = {k: np.asarray(npz[k], dtype=np.float64) for k in ("points", *extra)}
+        out["body"] = [str(b) for b in npz["body"]]
+    return out
+
+
 class BatchedHandKinematics:
     """Batched forward kinematics of ``hand_dir/hand.xml`` and its grasp-synthesis geometry."""
 
@@ -130,22 +142,10 @@ class BatchedHandKinematics:
         hand = _load_json(self.hand_dir / HAND_JSON)
         caps = _load_json(self.hand_dir / CAPSULES_JSON)
         cand_path = self.hand_dir / CANDIDATES_NPZ
-        if not cand_path.is_file():
-            raise FileNotFoundError(
-                f"{cand_path} not found: pass the hand stage's output directory"
-            )
-        with np.load(cand_path) as npz:
-            cand_points = np.asarray(npz["points"], dtype=np.float64)
-            cand_normals = np.asarray(npz["normals"], dtype=np.float64)
-            cand_bodies = [str(b) for b in npz["body"]]
-        surface_path = self.hand_dir / SURFACE_NPZ
-        if not surface_path.is_file():
-            raise FileNotFoundError(
-                f"{surface_path} not found: rebuild the hand (rule build_hand) to write it"
-            )
-        with np.load(surface_path) as npz:
-            surface_points = np.asarray(npz["points"], dtype=np.float64)
-            surface_bodies = [str(b) for b in npz["body"]]
+        cands = _load_points(cand_path, "normals")
+        cand_points, cand_normals, cand_bodies = cands["points"], cands["normals"], cands["body"]
+        surface = _load_points(self.hand_dir / SURFACE_NPZ)
+        surface_points, surface_bodies = surface["points"], surface["body"]
 
         model = mujoco.MjModel.from_xml_path(str(xml))
         self.model = model

@@ -136,6 +136,63 @@ class TorchSDF:
 BLOCK = 4
 
 
+@numba.njit(inline="always")
+def _cell(px, py, pz, lo, hi, constants):  # type: ignore[no-untyped-def]
+    """Cell ``(ix, iy, iz)``, fractions ``(tx, ty, tz)`` and outside offset of a point.
+
+    The point is clamped into the grid box (the remainder is the offset); ``constants`` holds
+    the spacing, 1 and the last cell index per axis in the grid dtype.
+    """
+    spacing = constants[0]
+    zero = constants[1] - constants[1]
+    cx = min(max(px, lo[0]), hi[0])
+    cy = min(max(py, lo[1]), hi[1])
+    cz = min(max(pz, lo[2]), hi[2])
+    u = (cx - lo[0]) / spacing
+    i0 = min(max(np.floor(u), zero), constants[2])
+    tx = u - i0
+    ix = int(i0)
+    u = (cy - lo[1]) / spacing
+    i0 = min(max(np.floor(u), zero), constants[3])
+    ty = u - i0
+    iy = int(i0)
+    u = (cz - lo[2]) / spacing
+    i0 = min(max(np.floor(u), zero), constants[4])
+    tz = u - i0
+    iz = int(i0)
+    return ix, iy, iz, tx, ty, tz, px - cx, py - cy, pz - cz
+
+
+@numba.njit(inline="always")
+def _corners(values, base, sx, sy):  # type: ignore[no-untyped-def]
+    """The cell's eight node values, c000 ... c111 (two adjacent pairs per (x, y) column:
+    measured faster than a table of 8 corners per cell, which is 8x larger)."""
+    return (
+        values[base],
+        values[base + 1],
+        values[base + sy],
+        values[base + sy + 1],
+        values[base + sx],
+        values[base + sx + 1],
+        values[base + sx + sy],
+        values[base + sx + sy + 1],
+    )
+
+
+@numba.njit(inline="always")
+def _interpolate(corners, tx, ty, tz):  # type: ignore[no-untyped-def]
+    """Trilinear interpolation along z first (the order of SDFGrid.query); the intermediate
+    values too, which the gradient needs."""
+    c000, c001, c010, c011, c100, c101, c110, c111 = corners
+    c00 = c000 + (c001 - c000) * tz
+    c01 = c010 + (c011 - c010) * tz
+    c10 = c100 + (c101 - c100) * tz
+    c11 = c110 + (c111 - c110) * tz
+    c0 = c00 + (c01 - c00) * ty
+    c1 = c10 + (c11 - c10) * ty
+    return c00, c01, c10, c11, c0, c1, c0 + (c1 - c0) * tx
+
+
 @numba.njit(cache=True)
 def _depth_sum_kernel(
     pts: np.ndarray,
@@ -148,49 +205,19 @@ def _depth_sum_kernel(
     out: np.ndarray,
 ) -> None:
     """``out[b] = sum_s max(-d(pts[b, s]), 0)``; ``d`` exactly as in :func:`_query_kernel`."""
-    spacing = constants[0]
-    one = constants[1]
-    zero = one - one
+    zero = constants[1] - constants[1]
     sx = shape[1] * shape[2]
     sy = shape[2]
     for b in range(pts.shape[0]):
         total = 0.0
         for n in range(pts.shape[1]):
-            px, py, pz = pts[b, n, 0], pts[b, n, 1], pts[b, n, 2]
-            cx = min(max(px, lo[0]), hi[0])
-            cy = min(max(py, lo[1]), hi[1])
-            cz = min(max(pz, lo[2]), hi[2])
-            u = (cx - lo[0]) / spacing
-            i0 = min(max(np.floor(u), zero), constants[2])
-            tx = u - i0
-            ix = int(i0)
-            u = (cy - lo[1]) / spacing
-            i0 = min(max(np.floor(u), zero), constants[3])
-            ty = u - i0
-            iy = int(i0)
-            u = (cz - lo[2]) / spacing
-            i0 = min(max(np.floor(u), zero), constants[4])
-            tz = u - i0
-            iz = int(i0)
+            ix, iy, iz, tx, ty, tz, ox, oy, oz = _cell(
+                pts[b, n, 0], pts[b, n, 1], pts[b, n, 2], lo, hi, constants
+            )
             if block_min[ix // BLOCK, iy // BLOCK, iz // BLOCK] >= zero:
                 continue  # every corner >= 0, so d >= 0 (see TorchSDF.depth_sum)
-            base = ix * sx + iy * sy + iz
-            c000 = values[base]
-            c001 = values[base + 1]
-            c010 = values[base + sy]
-            c011 = values[base + sy + 1]
-            c100 = values[base + sx]
-            c101 = values[base + sx + 1]
-            c110 = values[base + sx + sy]
-            c111 = values[base + sx + sy + 1]
-            c00 = c000 + (c001 - c000) * tz
-            c01 = c010 + (c011 - c010) * tz
-            c10 = c100 + (c101 - c100) * tz
-            c11 = c110 + (c111 - c110) * tz
-            c0 = c00 + (c01 - c00) * ty
-            c1 = c10 + (c11 - c10) * ty
-            d = c0 + (c1 - c0) * tx
-            ox, oy, oz = px - cx, py - cy, pz - cz
+            corners = _corners(values, ix * sx + iy * sy + iz, sx, sy)
+            d = _interpolate(corners, tx, ty, tz)[6]
             out_sq = ox * ox + oy * oy + oz * oz
             if out_sq > zero:
                 d = d + np.sqrt(out_sq)
@@ -216,48 +243,18 @@ def _query_kernel(
     node spacing, 1 and the last cell index along x, y, z in the dtype (typed constants keep all
     arithmetic in the dtype). Formulas and their order are those of :meth:`SDFGrid.query`.
     """
-    spacing = constants[0]
     one = constants[1]
     zero = one - one
     sx = shape[1] * shape[2]  # node strides
     sy = shape[2]
     for n in range(pts.shape[0]):
-        base = 0
-        px, py, pz = pts[n, 0], pts[n, 1], pts[n, 2]
         # clamp into the grid box; the remainder is the outside offset
-        cx = min(max(px, lo[0]), hi[0])
-        cy = min(max(py, lo[1]), hi[1])
-        cz = min(max(pz, lo[2]), hi[2])
-        u = (cx - lo[0]) / spacing
-        i0 = min(max(np.floor(u), zero), constants[2])
-        tx = u - i0
-        base += int(i0) * sx
-        u = (cy - lo[1]) / spacing
-        i0 = min(max(np.floor(u), zero), constants[3])
-        ty = u - i0
-        base += int(i0) * sy
-        u = (cz - lo[2]) / spacing
-        i0 = min(max(np.floor(u), zero), constants[4])
-        tz = u - i0
-        base += int(i0)
-        # the eight corners: two adjacent pairs per (x, y) corner column, from the flat values
-        # (measured faster than a table of 8 corners per cell, which is 8x larger)
-        c000 = values[base]
-        c001 = values[base + 1]
-        c010 = values[base + sy]
-        c011 = values[base + sy + 1]
-        c100 = values[base + sx]
-        c101 = values[base + sx + 1]
-        c110 = values[base + sx + sy]
-        c111 = values[base + sx + sy + 1]
-        # interpolate along z first (the order of SDFGrid.query)
-        c00 = c000 + (c001 - c000) * tz
-        c01 = c010 + (c011 - c010) * tz
-        c10 = c100 + (c101 - c100) * tz
-        c11 = c110 + (c111 - c110) * tz
-        c0 = c00 + (c01 - c00) * ty
-        c1 = c10 + (c11 - c10) * ty
-        d = c0 + (c1 - c0) * tx
+        ix, iy, iz, tx, ty, tz, ox, oy, oz = _cell(
+            pts[n, 0], pts[n, 1], pts[n, 2], lo, hi, constants
+        )
+        corners = _corners(values, ix * sx + iy * sy + iz, sx, sy)
+        c000, c001, c010, c011, c100, c101, c110, c111 = corners
+        c00, c01, c10, c11, c0, c1, d = _interpolate(corners, tx, ty, tz)
         gx = c1 - c0
         gy = (one - tx) * (c01 - c00) + tx * (c11 - c10)
         dz0 = (one - ty) * (c001 - c000) + ty * (c011 - c010)
@@ -268,7 +265,6 @@ def _query_kernel(
         inv = one / np.sqrt(sq) if sq > zero else zero
         nx, ny, nz = gx * inv, gy * inv, gz * inv
         # outside the box: d(c) + |p - c| along (p - c) / |p - c|
-        ox, oy, oz = px - cx, py - cy, pz - cz
         out_sq = ox * ox + oy * oy + oz * oz
         if out_sq > zero:
             out_dist = np.sqrt(out_sq)
