@@ -636,7 +636,7 @@ def plot_energy_histograms(
     for j in range(ncols):  # the lowest visible panel of each column carries the x label
         col_axes = [a for a in axes[:, j] if a.get_visible()]
         if col_axes:
-            col_axes[-1].set_xlabel("total energy $E$ (eq. 4)", fontsize=8)
+            col_axes[-1].set_xlabel("total energy $E$ (eq. 4 + $E_{hpen}$)", fontsize=8)
             col_axes[-1].xaxis.set_tick_params(labelbottom=True)
     handles = [
         Patch(facecolor=ENERGY_COLOURS["energy_start"], alpha=0.6, label=labels["energy_start"]),
