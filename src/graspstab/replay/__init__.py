@@ -1,0 +1,1 @@
+"""Replay stage (thesis 3.2): hold each synthesised grasp under gravity and record the traces."""

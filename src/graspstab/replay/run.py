@@ -1,0 +1,97 @@
+"""Run one replay in chunks of ``mujoco.rollout``; stop early once it can tell nothing more (3.2).
+
+The physics runs in C: each chunk is one rollout call whose sensordata rows become trace rows
+(:mod:`graspstab.replay.sensors`); between chunks Python only checks the stop rules. The solver's
+warm start is carried across chunks, so chunking changes nothing but where a replay may stop.
+
+Stop rules: ``contact_lost`` once no hand-object contact has existed for ``stop_after_loss_s``
+(longer than the labelling stage's 0.1 s contact-end rule, 3.3.1, so no label can change);
+``diverged`` on a non-finite state or a MuJoCo warning (such replays are flagged and excluded);
+``completed`` after all steps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import mujoco.rollout
+import numpy as np
+
+from graspstab.replay.sensors import SensorLayout, features
+
+CHANNELS = ("position", "velocity", "min_distance", "normal", "shear")
+
+
+@dataclass
+class ReplayResult:
+    """Trace rows (float32) and how the replay ended."""
+
+    traces: dict[str, np.ndarray]  # CHANNELS, (T, ...) each
+    steps: int  # steps simulated
+    stop_reason: str  # completed | contact_lost | diverged
+    overflow: int  # most fingertip contacts that did not fit the sensor slots
+    warnings: dict[str, int] = field(default_factory=dict)
+
+
+def _warnings(data: mujoco.MjData) -> dict[str, int]:
+    return {
+        mujoco.mjtWarning(i).name: int(w.number)
+        for i, w in enumerate(data.warning)
+        if w.number > 0
+    }
+
+
+def run_replay(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    layout: SensorLayout,
+    steps: int,
+    chunk: int,
+    stop_after_loss_steps: int,
+) -> ReplayResult:
+    """Roll out ``steps`` steps from ``data``'s current state with its current controls.
+
+    ``data`` must be placed (positions, controls, gravity) by the caller; it ends in the last
+    state. Row t of a trace is the sensor reading that step t computed, i.e. of the state before
+    integration (MuJoCo evaluates sensors inside ``mj_step``).
+    """
+    if chunk < 1 or steps < 1:
+        raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    control = data.ctrl.copy()[None, None]
+    parts: dict[str, list[np.ndarray]] = {c: [] for c in CHANNELS}
+    done, reason, overflow, lost_run = 0, "completed", 0, 0
+    while done < steps:
+        n = min(chunk, steps - done)
+        mujoco.mj_getState(model, data, state, spec)
+        _, sensordata = mujoco.rollout.rollout(
+            model,
+            data,
+            state[None],
+            control,
+            nstep=n,
+            initial_warmstart=data.qacc_warmstart.copy()[None],
+        )
+        rows = features(sensordata[0], layout)
+        finite = np.isfinite(sensordata[0]).all(axis=1)
+        ok = int(np.argmin(finite)) if not finite.all() else n
+        for c in CHANNELS:
+            parts[c].append(rows[c][:ok].astype(np.float32))
+        overflow = max(overflow, int(rows["overflow"].max(initial=0)))
+        done += ok
+        if ok < n or not np.isfinite(data.qpos).all() or _warnings(data):
+            reason = "diverged"
+            break
+        # contact loss: the run of undefined d_t that reaches the end of this chunk
+        defined = np.isfinite(rows["min_distance"])
+        tail = n if not defined.any() else n - 1 - int(np.flatnonzero(defined)[-1])
+        lost_run = lost_run + n if tail == n else tail
+        if lost_run >= stop_after_loss_steps and done < steps:
+            reason = "contact_lost"
+            break
+    traces = {
+        c: np.concatenate(v) if v else np.zeros((0,), np.float32) for c, v in parts.items()
+    }
+    return ReplayResult(traces, done, reason, overflow, _warnings(data))

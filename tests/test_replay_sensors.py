@@ -1,0 +1,163 @@
+"""Replay sensors on an analytic scene: a box squeezed between two position-driven fingertips."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from graspstab.replay.run import run_replay
+from graspstab.replay.sensors import add_replay_sensors, features, sensor_layout
+
+MASS, HALF, SQUEEZE, G = 0.2, 0.02, 5.0, 9.81
+SCENE = f"""
+<mujoco>
+  <option timestep="0.0005" cone="elliptic" impratio="10" gravity="0 0 0"/>
+  <worldbody>
+    <body name="hand">
+      <body name="tip_a" pos="-0.035 0 0">
+        <joint name="slide_a" type="slide" axis="1 0 0" damping="5"/>
+        <geom type="box" size="0.01 0.015 0.015" mass="0.05" friction="1 0.005 0.0001"/>
+      </body>
+      <body name="tip_b" pos="0.035 0 0">
+        <joint name="slide_b" type="slide" axis="-1 0 0" damping="5"/>
+        <geom type="box" size="0.01 0.015 0.015" mass="0.05" friction="1 0.005 0.0001"/>
+      </body>
+      <body name="palm" pos="0 0.1 0.05"><geom type="box" size="0.01 0.01 0.01"/></body>
+    </body>
+    <body name="object">
+      <freejoint/>
+      <geom type="box" size="{HALF} {HALF} {HALF}" mass="{MASS}" friction="1 0.005 0.0001"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <position joint="slide_a" kp="1000" forcerange="-{SQUEEZE} {SQUEEZE}"/>
+    <position joint="slide_b" kp="1000" forcerange="-{SQUEEZE} {SQUEEZE}"/>
+  </actuator>
+</mujoco>
+"""
+TIPS = {"a": "tip_a", "b": "tip_b"}
+
+
+def _scene(slots: int = 8) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    spec = mujoco.MjSpec.from_string(SCENE)
+    add_replay_sensors(spec, TIPS, "hand", "object", slots)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.ctrl[:] = 0.05  # both targets 5 cm inwards: deep in the box, so the force saturates
+    return model, data
+
+
+def _direct(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[float, np.ndarray, np.ndarray]:
+    """The same quantities from data.contact and mj_contactForce, contact by contact."""
+    obj = model.body("object").id
+    tips = [model.body(b).id for b in TIPS.values()]
+    hand = {model.body(n).id for n in ("hand", "tip_a", "tip_b", "palm")}
+    dmin, normal, shear = np.inf, np.zeros(2), np.zeros(2)
+    force = np.zeros(6)
+    for i in range(data.ncon):
+        c = data.contact[i]
+        bodies = {model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]}
+        if obj not in bodies or not (bodies - {obj}) <= hand:
+            continue
+        dmin = min(dmin, c.dist)
+        mujoco.mj_contactForce(model, data, i, force)
+        for k, tip in enumerate(tips):
+            if tip in bodies:
+                normal[k] += abs(force[0])
+                shear[k] += np.hypot(force[1], force[2])
+    return (np.nan if dmin == np.inf else dmin), normal, shear
+
+
+def test_sensor_features_equal_contact_by_contact_reference() -> None:
+    model, data = _scene()
+    layout = sensor_layout(model, tuple(TIPS), 8)
+    seen_none = seen_some = False
+    for step in range(1500):
+        if step == 300:
+            model.opt.gravity[:] = (0.0, 0.0, -G)
+        mujoco.mj_step(model, data)
+        mujoco.mj_forward(model, data)  # sensors and contacts of the same state
+        got = features(data.sensordata[None], layout)
+        dmin, normal, shear = _direct(model, data)
+        if np.isnan(dmin):
+            seen_none = True
+            assert np.isnan(got["min_distance"][0]), step
+        else:
+            seen_some = True
+            assert got["min_distance"][0] == pytest.approx(dmin, abs=1e-12), step
+        np.testing.assert_allclose(got["normal"][0], normal, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(got["shear"][0], shear, rtol=1e-9, atol=1e-9)
+        assert got["overflow"][0] == 0
+    assert seen_none and seen_some  # the fingers start apart, then close on the box
+
+
+def test_box_held_by_two_fingertips_carries_its_weight() -> None:
+    model, data = _scene()
+    layout = sensor_layout(model, tuple(TIPS), 8)
+    for _ in range(400):  # close the fingers without gravity, then switch it on
+        mujoco.mj_step(model, data)
+    model.opt.gravity[:] = (0.0, 0.0, -G)
+    rows = []
+    for _ in range(4000):
+        mujoco.mj_step(model, data)
+        rows.append(data.sensordata.copy())
+    f = features(np.array(rows[-1000:]), layout)  # the last 0.5 s: steady state
+    weight = MASS * G
+    # the squeeze is horizontal and saturated: each normal is the actuator's force limit
+    np.testing.assert_allclose(f["normal"].mean(0), SQUEEZE, rtol=0.02)
+    # the contact planes are vertical, so the shear carries the weight, half per fingertip
+    assert f["shear"].sum(1).mean() == pytest.approx(weight, rel=0.02)
+    np.testing.assert_allclose(f["shear"].mean(0), weight / 2, rtol=0.05)
+    # held: the object barely moves
+    assert np.abs(f["velocity"]).max() < 1e-3
+    assert np.isfinite(f["min_distance"]).all()
+
+
+def test_overflow_counts_contacts_beyond_the_slots() -> None:
+    model, data = _scene(slots=1)  # box-box contacts come in fours
+    layout = sensor_layout(model, tuple(TIPS), 1)
+    for _ in range(600):
+        mujoco.mj_step(model, data)
+    assert features(data.sensordata[None], layout)["overflow"][0] >= 1
+
+
+# ---------------------------------------------------------------------------------------------
+# run_replay on the same scene: held, dropped, chunking and determinism
+
+
+def _placed(squeeze: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    model, data = _scene()
+    model.actuator_forcerange[:] = (-squeeze, squeeze)
+    for _ in range(400):  # close the fingers without gravity (the scene is "placed")
+        mujoco.mj_step(model, data)
+    model.opt.gravity[:] = (0.0, 0.0, -G)
+    return model, data
+
+
+def test_run_replay_held_and_dropped() -> None:
+    model, data = _placed(SQUEEZE)
+    layout = sensor_layout(model, tuple(TIPS), 8)
+    held = run_replay(model, data, layout, steps=3000, chunk=500, stop_after_loss_steps=400)
+    assert held.stop_reason == "completed" and held.steps == 3000
+    assert held.traces["normal"].shape == (3000, 2) and held.traces["normal"].dtype == np.float32
+    assert np.isfinite(held.traces["min_distance"]).all()
+    assert np.linalg.norm(held.traces["velocity"][-500:], axis=1).max() < 1e-3
+    # 0.3 N of squeeze and friction 1 hold 0.6 N, not the box's 1.96 N weight: it falls away
+    model, data = _placed(0.3)
+    dropped = run_replay(model, data, layout, steps=20000, chunk=500, stop_after_loss_steps=400)
+    assert dropped.stop_reason == "contact_lost" and dropped.steps < 20000
+    assert np.isnan(dropped.traces["min_distance"][-400:]).all()
+    assert dropped.traces["position"][-1, 2] < -0.02  # it fell
+    assert not dropped.warnings
+
+
+def test_run_replay_chunking_and_determinism() -> None:
+    runs = []
+    for chunk in (250, 3000, 250):
+        model, data = _placed(SQUEEZE)
+        layout = sensor_layout(model, tuple(TIPS), 8)
+        runs.append(run_replay(model, data, layout, 3000, chunk, 400))
+    for c in runs[0].traces:
+        np.testing.assert_array_equal(runs[0].traces[c], runs[2].traces[c])  # bit for bit
+        np.testing.assert_allclose(runs[0].traces[c], runs[1].traces[c], rtol=0, atol=1e-6)
