@@ -21,6 +21,8 @@ FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_res
 TOY_SYNTHESIS = (
     "synthesis={shards: 2, grasps_per_shard: 3, annealing: {iterations: 60, batch_size: 2}}"
 )
+# Replays of 1 s in chunks of 0.25 s.
+TOY_REPLAY = "replay={steps: 2000, chunk_steps: 500}"
 
 
 def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
@@ -43,7 +45,7 @@ def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.Com
 def run(tmp_path_factory, ycb_dir, hand_assets_dir):
     workdir = tmp_path_factory.mktemp("wf")
     env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    config = ["--config", f"only_objects=[{OBJECT}]", FAST, TOY_SYNTHESIS]
+    config = ["--config", f"only_objects=[{OBJECT}]", FAST, TOY_SYNTHESIS, TOY_REPLAY]
     proc = _snakemake(workdir, "results/report.html", *config, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     return workdir, env, config
@@ -93,10 +95,34 @@ def test_grasp_shards_and_summary(run):
 
 
 @pytest.mark.workflow
+def test_replay_traces_and_summary(run):
+    import numpy as np
+    import polars as pl
+
+    from graspstab.replay.replay_grasps import trace_key
+
+    workdir, _, _ = run
+    replay = workdir / "results" / "replay" / OBJECT
+    for shard in range(2):
+        table = pl.read_parquet(replay / f"replays_{shard}.parquet")
+        grasps = pl.read_parquet(workdir / "results" / "grasps" / OBJECT / f"shard_{shard}.parquet")
+        assert table["grasp_id"].to_list() == grasps["grasp_id"].to_list()
+        assert set(table["stop_reason"]) <= {"completed", "contact_lost", "diverged"}
+        assert (table["steps"] <= 2000).all()
+        with np.load(replay / f"traces_{shard}.npz") as traces:
+            for row in table.iter_rows(named=True):
+                normal = traces[trace_key(row["grasp_id"], "normal")]
+                assert normal.shape == (row["steps"], 5) and normal.dtype == np.float32
+                pos = traces[trace_key(row["grasp_id"], "position")]
+                np.testing.assert_allclose(pos[0], 0.0, atol=1e-5)  # object frame, at rest
+
+
+@pytest.mark.workflow
 def test_report_is_self_contained(run):
     workdir, _, _ = run
     html = (workdir / "results" / "report.html").read_text()
     assert OBJECT in html and "Provenance" in html and "Grasp synthesis" in html
+    assert "Grasp replay" in html
     # no external requests: no http(s) sources or stylesheets
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)

@@ -1,4 +1,4 @@
-# The self-contained HTML report; at this stage it covers objects, hand and grasp synthesis.
+# The self-contained HTML report; at this stage it covers objects, hand, synthesis and replay.
 
 
 rule report:
@@ -14,6 +14,11 @@ rule report:
         grasp_summaries=grasp_outputs("summary.json"),
         anneal_benchmarks=expand(
             "results/benchmarks/anneal_grasps/{object}_shard_{shard}.tsv",
+            object=object_ids(),
+            shard=range(config["synthesis"]["shards"]),
+        ),
+        replay_summaries=expand(
+            "results/replay/{object}/replays_{shard}.parquet",
             object=object_ids(),
             shard=range(config["synthesis"]["shards"]),
         ),

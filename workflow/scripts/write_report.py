@@ -23,4 +23,5 @@ write_report(
     benchmark_files=[Path(p) for p in sm.input.object_benchmarks],
     grasp_summaries=[Path(p) for p in sm.input.grasp_summaries],
     anneal_benchmarks=[Path(p) for p in sm.input.anneal_benchmarks],
+    replay_summaries=[Path(p) for p in sm.input.replay_summaries],
 )

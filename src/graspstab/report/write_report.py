@@ -7,6 +7,8 @@ import logging
 from pathlib import Path
 from typing import Any
 
+import polars as pl
+
 import graspstab
 from graspstab.common.io import read_json, write_text
 from graspstab.common.provenance import stable_hash
@@ -153,6 +155,41 @@ def _synthesis_parts(
     return parts
 
 
+def _replay_parts(replay_summaries: list[Path] | None) -> list[str]:
+    """Replay outcomes per object (3.2), when the run got that far."""
+    if not replay_summaries:
+        return []
+    table = pl.concat([pl.read_parquet(p) for p in replay_summaries])
+    rows = []
+    for (oid,), g in sorted(table.group_by("object"), key=lambda kv: kv[0][0]):
+        rows.append(
+            [
+                oid,
+                g.height,
+                int(g["held_at_end"].sum()),
+                int((g["stop_reason"] == "contact_lost").sum()),
+                int(g["diverged"].sum()),
+                f"{g['max_penetration'].median() * 1000:.1f}",
+                f"{g['duration_s'].sum():.0f}",
+                f"{g['wall_s'].sum():.0f}",
+            ]
+        )
+    return [
+        "<h2>Grasp replay</h2>",
+        H.table(
+            [
+                "object", "replays", "held to the end", "contact lost (stopped early)",
+                "diverged", "median deepest contact [mm]", "simulated [s]", "wall [s]",
+            ],
+            rows,
+            caption=(
+                "Replays under gravity (3.2). Solver settings and actuator gains are provisional "
+                "(issue 4 in progress): these counts are not yet the dataset's."
+            ),
+        ),  # fmt: skip
+    ]
+
+
 def write_report(
     out_html: Path,
     config: dict[str, Any],
@@ -162,6 +199,7 @@ def write_report(
     benchmark_files: list[Path],
     grasp_summaries: list[Path] | None = None,
     anneal_benchmarks: list[Path] | None = None,
+    replay_summaries: list[Path] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced."""
     metas = [read_json(p) for p in object_meta]
@@ -171,8 +209,8 @@ def write_report(
     profile = config["profile_name"]
     sections = [
         f'<p class="note">Profile <b>{H.esc(profile)}</b>, {len(metas)} objects. This report '
-        "covers the stages built so far (objects, hand and grasp synthesis); later stages add "
-        "replays, datasets and models. A quick-profile run is a smoke test of the pipeline, not a "
+        "covers the stages built so far (objects, hand, grasp synthesis, replay); later stages "
+        "add datasets and models. A quick-profile run is a smoke test of the pipeline, not a "
         "reproduction of the reference's numbers.</p>",
         "<h2>Objects</h2>",
         _objects_section(config, metas, bench),
@@ -194,6 +232,7 @@ def write_report(
             "Capsule and box approximation used by the penetration energies (cf. fig. 3.5a).",
         ),
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
+        *_replay_parts(replay_summaries),
         "<h2>Provenance</h2>",
         H.table(
             ["item", "value"],
