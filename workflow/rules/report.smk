@@ -22,6 +22,7 @@ rule report:
             object=object_ids(),
             shard=range(config["synthesis"]["shards"]),
         ),
+        replay_trace=rules.plot_replay.output[0],
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,
         histograms=rules.plot_grasps.output.histograms,

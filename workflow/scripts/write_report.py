@@ -17,6 +17,7 @@ write_report(
         "pregrasp": Path(sm.input.pregrasp),
         "grasp_gallery": Path(sm.input.gallery),
         "energy_histograms": Path(sm.input.histograms),
+        "replay_trace": Path(sm.input.replay_trace),
     },
     object_meta=[Path(p) for p in sm.input.meta],
     hand_json=Path(sm.input.hand_json),

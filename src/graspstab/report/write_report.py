@@ -155,7 +155,7 @@ def _synthesis_parts(
     return parts
 
 
-def _replay_parts(replay_summaries: list[Path] | None) -> list[str]:
+def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path]) -> list[str]:
     """Replay outcomes per object (3.2), when the run got that far."""
     if not replay_summaries:
         return []
@@ -187,6 +187,18 @@ def _replay_parts(replay_summaries: list[Path] | None) -> list[str]:
                 "(issue 4 in progress): these counts are not yet the dataset's."
             ),
         ),  # fmt: skip
+        *(
+            [
+                H.image(
+                    figures["replay_trace"],
+                    "replay trace",
+                    "One replay: object motion, d_t and fingertip forces (cf. thesis fig. 3.7; "
+                    "the stable/unstable shading comes with the labelling stage).",
+                )
+            ]
+            if "replay_trace" in figures
+            else []
+        ),
     ]
 
 
@@ -232,7 +244,7 @@ def write_report(
             "Capsule and box approximation used by the penetration energies (cf. fig. 3.5a).",
         ),
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
-        *_replay_parts(replay_summaries),
+        *_replay_parts(replay_summaries, figures),
         "<h2>Provenance</h2>",
         H.table(
             ["item", "value"],
