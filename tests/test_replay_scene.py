@@ -67,3 +67,22 @@ def test_replay_of_a_grasp_is_bit_for_bit_deterministic(scene) -> None:
     assert runs[0].traces["normal"].max() > 0.0
     for c in runs[0].traces:
         np.testing.assert_array_equal(runs[0].traces[c], runs[1].traces[c])
+
+
+def test_a_grasp_that_holds_stays_held(scene) -> None:
+    """The grasp above, replayed for 6 s with the configured gains and contacts: the object stays
+    in the hand, barely moving, and the summary says so."""
+    from graspstab.replay.replay_grasps import summarise_replay
+
+    data = mujoco.MjData(scene.model)
+    quat = GRASP_QUAT / np.linalg.norm(GRASP_QUAT)
+    place_grasp(scene, data, GRASP_POS, quat, GRASP_JOINTS, G)
+    dt = PARAMS["timestep"]
+    run = run_replay(scene.model, data, scene.layout, round(6.0 / dt), 1000, 400)
+    traces = to_object_frame(run.traces, GRASP_POS, quat)
+    summary = summarise_replay(run, traces, dt, round(PARAMS["contact_loss_s"] / dt))
+    assert summary["stop_reason"] == "completed" and summary["held_at_end"]
+    assert summary["final_displacement"] < 0.01 and np.isnan(summary["contact_loss_s"])
+    speed = np.linalg.norm(traces["velocity"][-round(1.0 / dt) :], axis=1)
+    assert np.median(speed) < 0.1 * 0.0012  # creeps less than a tenth of 1.2 mm/s
+    assert traces["normal"][-1].sum() > 0.5  # fingertips still press on it

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from graspstab.replay.replay_grasps import summarise_replay
 from graspstab.replay.run import run_replay
 from graspstab.replay.sensors import add_replay_sensors, features, sensor_layout
 
@@ -150,6 +151,20 @@ def test_run_replay_held_and_dropped() -> None:
     assert np.isnan(dropped.traces["min_distance"][-400:]).all()
     assert dropped.traces["position"][-1, 2] < -0.02  # it fell
     assert not dropped.warnings
+    # the summaries say so
+    kept = summarise_replay(held, held.traces, 0.0005, 200)
+    lost = summarise_replay(dropped, dropped.traces, 0.0005, 200)
+    assert kept["held_at_end"] and kept["stop_reason"] == "completed" and kept["steps"] == 3000
+    assert kept["final_displacement"] < 0.002 and np.isnan(kept["contact_loss_s"])
+    assert kept["max_penetration"] > 0 and not kept["diverged"]
+    assert not lost["held_at_end"] and lost["stop_reason"] == "contact_lost"
+    assert lost["final_displacement"] > 0.02
+    # contact ends where the first 0.1 s (200-step) run of undefined d_t starts; brief gaps
+    # (contacts flicker while the box slides) do not count
+    undefined = np.isnan(dropped.traces["min_distance"]).astype(int)
+    window = np.convolve(undefined, np.ones(200, dtype=int), mode="valid")
+    first_run = int(np.flatnonzero(window == 200)[0])
+    assert lost["contact_loss_s"] == pytest.approx(first_run * 0.0005)
 
 
 def test_run_replay_chunking_and_determinism() -> None:
