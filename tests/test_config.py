@@ -57,7 +57,7 @@ def test_reference_constants(default_cfg):
     }
     assert c["synthesis"]["annealing"]["iterations"] == 6000
     assert c["replay"]["timestep"] == 0.0005 and c["replay"]["steps"] == 40000
-    assert c["labels"]["unstable_speed"] == 0.0012
+    assert c["labels"]["v_slip"] == 0.0012
     assert c["preprocess"]["hull_points"]["count"] == 2000
     assert c["hand"]["candidates"]["points_per_region"] == 12
     assert c["profile_name"] == "quick"

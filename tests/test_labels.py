@@ -108,7 +108,7 @@ def test_contact_end_and_depth_rejection() -> None:
 
 
 def test_timestep_labels_threshold() -> None:
-    u = timestep_labels(np.array([0.0, 0.0011999, 0.0012, 0.01]), LABELS["unstable_speed"])
+    u = timestep_labels(np.array([0.0, 0.0011999, 0.0012, 0.01]), LABELS["v_slip"])
     assert u.tolist() == [0, 0, 1, 1]
 
 
