@@ -1,0 +1,122 @@
+"""Build one window dataset from the replays (thesis 3.3, 3.5.1-3.5.2).
+
+For every replay that is neither diverged nor rejected: the usable interval (3.3.1), timestep
+labels (eq. 23), up to ``windows_per_grasp`` window starts (eq. 26, seeded per grasp), predictive
+labels (eqs. 29-30; ambiguous and empty targets dropped) and the input windows X_s (eq. 27,
+W x 5 fingertips x {normal, shear}). Writes into ``out_dir``:
+
+* ``index.parquet``: sample_id, object, grasp_id, shard, start, end (exclusive, s + W), r, label,
+  split (the object's split: every window of a grasp shares it);
+* ``windows.npy``: float32 (N, W, 5, 2), written through a memory map, for training to map;
+* ``normalisation.json``: per fingertip x channel mean and std over the training windows' time
+  steps only, the std floored at ``eps`` (3.5.2).
+"""
+
+from __future__ import annotations
+
+import os
+import zlib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from graspstab.common.io import atomic_path, write_json, write_parquet
+from graspstab.labels.interval import usable_interval
+from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
+from graspstab.replay.replay_grasps import trace_key
+
+CHANNELS = ("normal", "shear")
+
+
+def grasp_rng(seed: int, object_id: str, grasp_id: int) -> np.random.Generator:
+    """The window-start stream of one grasp (SeedSequence of seed, object, grasp)."""
+    return np.random.default_rng(
+        np.random.SeedSequence([int(seed), zlib.crc32(object_id.encode()), int(grasp_id)])
+    )
+
+
+def grasp_windows(
+    traces: dict[str, np.ndarray], object_id: str, grasp_id: int, labels: dict[str, Any],
+    window_s: float, dt: float, seed: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, str | None]:  # fmt: skip
+    """Labelled window starts, r_s and labels of one replay, and why it was rejected (if)."""
+    w, o, h = step_counts(window_s, labels["offset_s"], labels["horizon_s"], dt)
+    speed = np.linalg.norm(traces["velocity"].astype(np.float64), axis=1)
+    dist = traces["min_distance"].astype(np.float64)
+    ui = usable_interval(speed, dist, dt, labels["settle"], labels["contact_loss_s"])
+    empty = np.zeros(0, dtype=np.int64)
+    if ui.rejected:
+        return empty, np.zeros(0), np.zeros(0, np.int8), ui.rejected
+    starts = window_starts(ui.settle_index, ui.contact_end, w, o, h,
+                           int(labels["windows_per_grasp"]), grasp_rng(seed, object_id, grasp_id))
+    u = timestep_labels(speed, labels["v_slip"])
+    r, y = predictive_labels(u, starts, ui.contact_end, w, o, h,
+                             labels["label_low"], labels["label_high"])  # fmt: skip
+    keep = y >= 0
+    return starts[keep], r[keep], y[keep], None
+
+
+def label_windows(
+    replay_tables: list[str | Path],
+    out_dir: str | Path,
+    labels: dict[str, Any],
+    splits: dict[str, str],
+    window_s: float,
+    dt: float,
+    seed: int,
+    eps: float = 1e-6,
+) -> pl.DataFrame:
+    """Build the dataset of ``window_s`` from the replay tables (traces beside them)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    w = step_counts(window_s, labels["offset_s"], labels["horizon_s"], dt)[0]
+    rows: list[dict[str, Any]] = []
+    chunks: list[np.ndarray] = []
+    for table_path in map(Path, replay_tables):
+        table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
+        traces_path = table_path.with_name(table_path.name.replace("replays_", "traces_"))
+        with np.load(traces_path.with_suffix(".npz")) as npz:
+            for g in table.iter_rows(named=True):
+                obj, gid = g["object"], int(g["grasp_id"])
+                if obj not in splits:
+                    raise KeyError(f"{table_path}: object {obj!r} has no split in the object set")
+                tr = {c: npz[trace_key(gid, c)] for c in ("velocity", "min_distance", *CHANNELS)}
+                starts, r, y, _ = grasp_windows(tr, obj, gid, labels, window_s, dt, seed)
+                if not len(starts):
+                    continue
+                feats = np.stack([tr[c] for c in CHANNELS], axis=-1)  # (T, 5, 2)
+                idx = starts[:, None] + np.arange(w)[None]
+                chunks.append(feats[idx].astype(np.float32))
+                for s, rs, ys in zip(starts, r, y, strict=True):
+                    rows.append({"object": obj, "grasp_id": gid, "shard": int(g["shard"]),
+                                 "start": int(s), "end": int(s) + w, "r": float(rs),
+                                 "label": int(ys), "split": splits[obj]})  # fmt: skip
+    index = pl.DataFrame(
+        rows,
+        schema={"object": pl.String, "grasp_id": pl.Int64, "shard": pl.Int32, "start": pl.Int64,
+                "end": pl.Int64, "r": pl.Float64, "label": pl.Int8, "split": pl.String},
+    ).with_row_index("sample_id")  # fmt: skip
+    windows = np.concatenate(chunks) if chunks else np.zeros((0, w, 5, 2), np.float32)
+    with atomic_path(out / "windows.npy") as tmp:
+        mm = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=windows.shape)
+        mm[:] = windows
+        mm.flush()
+        del mm
+    train = windows[(index["split"] == "train").to_numpy()]
+    flat = train.reshape(-1, 5, 2).astype(np.float64)
+    mean = flat.mean(axis=0) if len(flat) else np.zeros((5, 2))
+    std = np.maximum(flat.std(axis=0), eps) if len(flat) else np.ones((5, 2))
+    write_json(out / "normalisation.json", {
+        "mean": mean.tolist(), "std": std.tolist(), "eps": eps, "axes": "fingertip x channel",
+        "channels": list(CHANNELS), "train_windows": int(len(train)),
+    })  # fmt: skip
+    write_parquet(out / "index.parquet", index, metadata={"window_steps": w, "dt": dt,
+                                                          "window_s": window_s})  # fmt: skip
+    return index
+
+
+def load_windows(out_dir: str | Path) -> np.ndarray:
+    """The dataset's windows as a read-only memory map (N, W, 5, 2)."""
+    return np.load(os.fspath(Path(out_dir) / "windows.npy"), mmap_mode="r")
