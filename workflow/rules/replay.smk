@@ -33,6 +33,7 @@ rule plot_replay:
         "results/figures/replay_trace.png",
     params:
         timestep=config["replay"]["timestep"],
+        labels=config["labels"],
     conda:
         CONDA_ENV
     threads: 1

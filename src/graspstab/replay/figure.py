@@ -31,10 +31,16 @@ def pick_example(summary: pl.DataFrame) -> int:
 
 
 def plot_replay_trace(
-    traces: dict[str, np.ndarray], dt: float, out_path: str | Path, title: str
+    traces: dict[str, np.ndarray],
+    dt: float,
+    out_path: str | Path,
+    title: str,
+    shading: tuple[int, int, np.ndarray] | None = None,
 ) -> None:
     """Eight stacked panels over time (seconds); units in the axis labels. The free fall after
-    the last hand-object contact is cut at 0.1 s past it (it would set every motion axis)."""
+    the last hand-object contact is cut at 0.1 s past it (it would set every motion axis).
+    ``shading`` = (settle index, contact end, u_t) shades the usable interval's unstable periods
+    red and stable periods green (eq. 23)."""
     defined = np.flatnonzero(np.isfinite(traces["min_distance"]))
     if len(defined):
         end = min(len(traces["min_distance"]), int(defined[-1]) + 1 + round(0.1 / dt))
@@ -62,6 +68,17 @@ def plot_replay_trace(
         if len(lines) > 1:
             ax.legend(fontsize=6, ncol=5, loc="upper right")
     axes[3].axhline(1.2, color="k", ls="--", lw=0.6)  # 3.3.2's instability threshold
+    if shading is not None:
+        settle, end, u = shading
+        end = min(end, len(t))
+        if end > settle:
+            seg = np.asarray(u[settle:end], dtype=np.int8)
+            edges = np.flatnonzero(np.diff(seg)) + 1
+            bounds = np.concatenate([[0], edges, [len(seg)]])
+            for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+                colour = "tab:red" if seg[a] else "tab:green"
+                for ax in axes:
+                    ax.axvspan(t[settle + a], t[settle + b - 1], color=colour, alpha=0.15, lw=0)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
@@ -71,13 +88,27 @@ def plot_replay_trace(
 
 
 def plot_replay_example(
-    summary_path: str | Path, traces_path: str | Path, dt: float, out_path: str | Path
+    summary_path: str | Path,
+    traces_path: str | Path,
+    dt: float,
+    out_path: str | Path,
+    labels: dict | None = None,
 ) -> int:
-    """Draw :func:`pick_example`'s replay of one shard; returns its grasp id."""
+    """Draw :func:`pick_example`'s replay of one shard, shaded with the labelling rules of
+    ``labels`` (the labels config slice) when given; returns its grasp id."""
+    from graspstab.labels.interval import usable_interval
+    from graspstab.labels.windows import timestep_labels
+
     summary = pl.read_parquet(summary_path)
     gid = pick_example(summary)
     with np.load(traces_path) as npz:
         traces = {c: npz[trace_key(gid, c)] for c in CHANNELS}
+    shading = None
+    if labels is not None:
+        speed = np.linalg.norm(traces["velocity"].astype(np.float64), axis=1)
+        ui = usable_interval(speed, traces["min_distance"].astype(np.float64), dt,
+                             labels["settle"], labels["contact_loss_s"])  # fmt: skip
+        shading = (ui.settle_index, ui.contact_end, timestep_labels(speed, labels["v_slip"]))
     obj = summary["object"][0]
-    plot_replay_trace(traces, dt, out_path, f"{obj}, grasp {gid} (cf. thesis fig. 3.7)")
+    plot_replay_trace(traces, dt, out_path, f"{obj}, grasp {gid} (cf. thesis fig. 3.7)", shading)
     return gid
