@@ -154,3 +154,49 @@ def test_window_starts_properties(settle: int, length: int, count: int, seed: in
         assert (y == 0).all()
     again = window_starts(settle, end, w, o, h, count, np.random.default_rng(seed))
     assert np.array_equal(starts, again)  # seeded
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    n=st.integers(0, 30),
+    w_ref=st.integers(1, 60),
+    frac=st.floats(0.0, 1.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_same_end_trimming_invariants(n: int, w_ref: int, frac: float, seed: int) -> None:
+    import polars as pl
+
+    from graspstab.labels.trim import trim_same_end
+
+    rng = np.random.default_rng(seed)
+    w = max(1, int(round(frac * w_ref)))
+    starts = rng.integers(0, 1000, n)
+    index = pl.DataFrame({
+        "sample_id": np.arange(n), "start": starts, "end": starts + w_ref,
+        "r": rng.random(n), "label": rng.integers(0, 2, n).astype(np.int8),
+        "split": rng.choice(["train", "val", "test"], n),
+    })  # fmt: skip
+    windows = rng.random((n, w_ref, 5, 2)).astype(np.float32)
+    got, cut = trim_same_end(index, windows, w)
+    offset, horizon = 200, 300
+    assert got.height == index.height and cut.shape == (n, w, 5, 2)  # sample count, length
+    assert got["end"].to_list() == index["end"].to_list()  # same end time ...
+    assert ((got["end"] - got["start"]) == w).all()
+    # ... the same offset and target interval: first target step s + W + O (eq. 29) agrees
+    first_trimmed = got["start"].to_numpy() + w + offset
+    first_reference = index["start"].to_numpy() + w_ref + offset
+    assert np.array_equal(first_trimmed, first_reference)
+    assert np.array_equal(first_trimmed + horizon, first_reference + horizon)
+    for col in ("sample_id", "r", "label", "split"):  # same samples, labels and splits
+        assert got[col].to_list() == index[col].to_list()
+    np.testing.assert_array_equal(cut, windows[:, w_ref - w :])  # the reference's last frames
+
+
+def test_trimming_rejects_longer_windows() -> None:
+    import polars as pl
+
+    from graspstab.labels.trim import trim_same_end
+
+    index = pl.DataFrame({"start": [0], "end": [10]})
+    with pytest.raises(ValueError, match="1 <= W <= 10"):
+        trim_same_end(index, np.zeros((1, 10, 5, 2), np.float32), 11)
