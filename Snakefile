@@ -9,6 +9,7 @@ include: "workflow/rules/objects.smk"
 include: "workflow/rules/hand.smk"
 include: "workflow/rules/synthesis.smk"
 include: "workflow/rules/replay.smk"
+include: "workflow/rules/dataset.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -118,11 +118,41 @@ def test_replay_traces_and_summary(run):
 
 
 @pytest.mark.workflow
+def test_datasets_baseline_and_sweep(run):
+    import numpy as np
+    import polars as pl
+
+    workdir, _, _ = run
+    data = workdir / "results" / "datasets"
+    base = pl.read_parquet(data / "baseline" / "index.parquet")
+    assert np.load(data / "baseline" / "windows.npy", mmap_mode="r").shape[1:] == (400, 5, 2)
+    assert set(base["split"].unique()) <= {"train"}  # the one object is a training object
+    ref = pl.read_parquet(data / "sweep" / "reference" / "index.parquet")
+    for ms in (10, 200, 500):
+        sweep = pl.read_parquet(data / "sweep" / f"w{ms}ms" / "index.parquet")
+        windows = np.load(data / "sweep" / f"w{ms}ms" / "windows.npy", mmap_mode="r")
+        assert windows.shape == (ref.height, ms * 2, 5, 2)
+        for col in ("sample_id", "end", "label", "split"):
+            assert sweep[col].to_list() == ref[col].to_list()
+
+
+@pytest.mark.workflow
+def test_labelling_parameter_reruns_labelling_only(run):
+    workdir, env, config = run
+    changed = [*config, "labels={v_slip: 0.002}"]
+    proc = _snakemake(workdir, "results/report.html", "--dry-run", *changed, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    jobs = set(re.findall(r"^(\w+)\s+\d+$", proc.stdout, flags=re.M)) - {"total"}
+    assert {"label_windows", "label_sweep_reference", "trim_sweep_window", "report"} <= jobs
+    assert not jobs & {"anneal_grasps", "replay_grasps", "preprocess_object", "build_hand"}
+
+
+@pytest.mark.workflow
 def test_report_is_self_contained(run):
     workdir, _, _ = run
     html = (workdir / "results" / "report.html").read_text()
     assert OBJECT in html and "Provenance" in html and "Grasp synthesis" in html
-    assert "Grasp replay" in html
+    assert "Grasp replay" in html and "Window datasets" in html
     # no external requests: no http(s) sources or stylesheets
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)

@@ -23,6 +23,8 @@ rule report:
             shard=range(config["synthesis"]["shards"]),
         ),
         replay_trace=rules.plot_replay.output[0],
+        dataset_summary=rules.label_windows.output.summary,
+        sweep_summaries=expand("results/datasets/sweep/w{ms}ms/summary.json", ms=sweep_ms()),
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,
         histograms=rules.plot_grasps.output.histograms,

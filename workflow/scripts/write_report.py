@@ -25,4 +25,6 @@ write_report(
     grasp_summaries=[Path(p) for p in sm.input.grasp_summaries],
     anneal_benchmarks=[Path(p) for p in sm.input.anneal_benchmarks],
     replay_summaries=[Path(p) for p in sm.input.replay_summaries],
+    dataset_summary=Path(sm.input.dataset_summary),
+    sweep_summaries=[Path(p) for p in sm.input.sweep_summaries],
 )

@@ -104,17 +104,23 @@ def label_windows(
         mm[:] = windows
         mm.flush()
         del mm
-    train = windows[(index["split"] == "train").to_numpy()]
-    flat = train.reshape(-1, 5, 2).astype(np.float64)
-    mean = flat.mean(axis=0) if len(flat) else np.zeros((5, 2))
-    std = np.maximum(flat.std(axis=0), eps) if len(flat) else np.ones((5, 2))
-    write_json(out / "normalisation.json", {
-        "mean": mean.tolist(), "std": std.tolist(), "eps": eps, "axes": "fingertip x channel",
-        "channels": list(CHANNELS), "train_windows": int(len(train)),
-    })  # fmt: skip
+    write_json(out / "normalisation.json", normalisation(windows, index, eps))
     write_parquet(out / "index.parquet", index, metadata={"window_steps": w, "dt": dt,
                                                           "window_s": window_s})  # fmt: skip
     return index
+
+
+def normalisation(windows: np.ndarray, index: pl.DataFrame, eps: float = 1e-6) -> dict[str, Any]:
+    """Per fingertip x channel mean and std over the training windows' time steps only (3.5.2),
+    the std floored at ``eps``; validation and test windows never enter."""
+    train = np.asarray(windows[(index["split"] == "train").to_numpy()])
+    flat = train.reshape(-1, 5, 2).astype(np.float64)
+    mean = flat.mean(axis=0) if len(flat) else np.zeros((5, 2))
+    std = np.maximum(flat.std(axis=0), eps) if len(flat) else np.ones((5, 2))
+    return {
+        "mean": mean.tolist(), "std": std.tolist(), "eps": eps, "axes": "fingertip x channel",
+        "channels": list(CHANNELS), "train_windows": int(len(train)),
+    }  # fmt: skip
 
 
 def load_windows(out_dir: str | Path) -> np.ndarray:

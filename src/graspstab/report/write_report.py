@@ -202,6 +202,36 @@ def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path])
     ]
 
 
+def _dataset_parts(baseline: Path | None, sweep: list[Path] | None) -> list[str]:
+    """Window counts per split and class (cf. 4.1.1), per object, and per sweep window."""
+    if baseline is None:
+        return []
+    base = read_json(baseline)
+    head = ["", *[f"{s} {c}" for s in ("train", "val", "test") for c in ("stable", "unstable")]]
+
+    def row(name: str, counts: dict) -> list:
+        return [name, *[counts[s][c] for s in ("train", "val", "test")
+                        for c in ("stable", "unstable")]]  # fmt: skip
+
+    rows = [row("all objects", base["splits"])]
+    rows += [row(o, c) for o, c in base["objects"].items()]
+    parts = [
+        "<h2>Window datasets</h2>",
+        H.table(head, rows, caption=(
+            f"Baseline dataset ({base['window_s']:g} s windows, 3.3): labelled windows per split "
+            "and class (cf. section 4.1.1)")),
+    ]  # fmt: skip
+    if sweep:
+        sums = sorted((read_json(p) for p in sweep), key=lambda d: d["window_s"])
+        parts.append(H.table(
+            ["window [s]", "windows", "train unstable", "val unstable", "test unstable"],
+            [[f"{d['window_s']:g}", d["windows"],
+              *[d["splits"][s]["unstable"] for s in ("train", "val", "test")]] for d in sums],
+            caption="Sweep datasets, trimmed from the longest window (same end, label, split)",
+        ))  # fmt: skip
+    return parts
+
+
 def write_report(
     out_html: Path,
     config: dict[str, Any],
@@ -212,6 +242,8 @@ def write_report(
     grasp_summaries: list[Path] | None = None,
     anneal_benchmarks: list[Path] | None = None,
     replay_summaries: list[Path] | None = None,
+    dataset_summary: Path | None = None,
+    sweep_summaries: list[Path] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced."""
     metas = [read_json(p) for p in object_meta]
@@ -245,6 +277,7 @@ def write_report(
         ),
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         *_replay_parts(replay_summaries, figures),
+        *_dataset_parts(dataset_summary, sweep_summaries),
         "<h2>Provenance</h2>",
         H.table(
             ["item", "value"],

@@ -1,0 +1,102 @@
+# Window datasets (thesis 3.3, 3.5.4): the baseline task's dataset, the sweep's reference dataset at
+# the longest window and one trimmed dataset per sweep window (same end, label, split, count).
+
+DATASET_FILES = ["index.parquet", "windows.npy", "normalisation.json", "summary.json"]
+
+
+def replay_outputs(kind):
+    """Every replay table (kind "replays", .parquet) or trace file (kind "traces", .npz)."""
+    ext = "parquet" if kind == "replays" else "npz"
+    return expand(
+        f"results/replay/{{object}}/{kind}_{{shard}}.{ext}",
+        object=object_ids(),
+        shard=range(config["synthesis"]["shards"]),
+    )
+
+
+def object_splits():
+    """The split of every object of the run (3.5.1)."""
+    return {o: config["objects"]["items"][o]["split"] for o in object_ids()}
+
+
+def sweep_ms():
+    """The sweep's window lengths in whole milliseconds (the wildcard of trim_sweep_window)."""
+    return [round(1000 * w) for w in config["sweep"]["windows_s"]]
+
+
+def dataset_params(window_s):
+    """What a dataset depends on: labelling rules, splits, time step, seed and its window."""
+    return {
+        "labels": config["labels"],
+        "splits": object_splits(),
+        "dt": config["replay"]["timestep"],
+        "seed": config["seed"],
+        "window_s": window_s,
+    }
+
+
+rule label_windows:
+    input:
+        tables=replay_outputs("replays"),
+        traces=replay_outputs("traces"),
+    output:
+        **{Path(n).stem: f"results/datasets/baseline/{n}" for n in DATASET_FILES},
+    params:
+        dataset=dataset_params(config["labels"]["window_s"]),
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=60,
+    log:
+        "results/logs/label_windows/baseline.log",
+    benchmark:
+        "results/benchmarks/label_windows/baseline.tsv"
+    script:
+        "../scripts/label_windows.py"
+
+
+rule label_sweep_reference:
+    input:
+        tables=replay_outputs("replays"),
+        traces=replay_outputs("traces"),
+    output:
+        **{Path(n).stem: f"results/datasets/sweep/reference/{n}" for n in DATASET_FILES},
+    params:
+        dataset=dataset_params(max(config["sweep"]["windows_s"])),
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=60,
+    log:
+        "results/logs/label_sweep_reference/reference.log",
+    benchmark:
+        "results/benchmarks/label_sweep_reference/reference.tsv"
+    script:
+        "../scripts/label_windows.py"
+
+
+rule trim_sweep_window:
+    input:
+        rules.label_sweep_reference.output,
+    output:
+        **{Path(n).stem: f"results/datasets/sweep/w{{ms}}ms/{n}" for n in DATASET_FILES},
+    params:
+        dt=config["replay"]["timestep"],
+    wildcard_constraints:
+        ms="[0-9]+",
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=30,
+    log:
+        "results/logs/trim_sweep_window/w{ms}ms.log",
+    benchmark:
+        "results/benchmarks/trim_sweep_window/w{ms}ms.tsv"
+    script:
+        "../scripts/trim_sweep_window.py"

@@ -1,0 +1,18 @@
+"""Snakemake wrapper: build one window dataset from the replays (graspstab.labels)."""
+
+from pathlib import Path
+
+from graspstab.labels.build_datasets import build_dataset
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+p = dict(sm.params.dataset)
+build_dataset(
+    list(sm.input.tables),
+    Path(sm.output.index).parent,
+    dict(p["labels"]),
+    dict(p["splits"]),
+    float(p["window_s"]),
+    float(p["dt"]),
+    int(p["seed"]),
+    log_file=sm.log[0],
+)
