@@ -156,7 +156,7 @@ def test_report_is_self_contained(run):
     # no external requests: no http(s) sources or stylesheets
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
-    assert len(images) == 7  # objects, hand x2, pre-grasp, gallery, histograms, replay
+    assert len(images) == 8  # objects, hand x2, pre-grasp, gallery, histograms, replay, window
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 

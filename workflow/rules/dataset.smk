@@ -100,3 +100,26 @@ rule trim_sweep_window:
         "results/benchmarks/trim_sweep_window/w{ms}ms.tsv"
     script:
         "../scripts/trim_sweep_window.py"
+
+
+rule plot_window:
+    input:
+        index=rules.label_windows.output.index,
+        traces=replay_outputs("traces"),
+    output:
+        "results/figures/window.png",
+    params:
+        labels=config["labels"],
+        dt=config["replay"]["timestep"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/plot_window/window.log",
+    benchmark:
+        "results/benchmarks/plot_window/window.tsv"
+    script:
+        "../scripts/plot_window.py"

@@ -24,6 +24,7 @@ rule report:
         ),
         replay_trace=rules.plot_replay.output[0],
         dataset_summary=rules.label_windows.output.summary,
+        window_figure=rules.plot_window.output[0],
         sweep_summaries=expand("results/datasets/sweep/w{ms}ms/summary.json", ms=sweep_ms()),
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,

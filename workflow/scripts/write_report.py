@@ -18,6 +18,7 @@ write_report(
         "grasp_gallery": Path(sm.input.gallery),
         "energy_histograms": Path(sm.input.histograms),
         "replay_trace": Path(sm.input.replay_trace),
+        "window": Path(sm.input.window_figure),
     },
     object_meta=[Path(p) for p in sm.input.meta],
     hand_json=Path(sm.input.hand_json),

@@ -202,7 +202,9 @@ def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path])
     ]
 
 
-def _dataset_parts(baseline: Path | None, sweep: list[Path] | None) -> list[str]:
+def _dataset_parts(
+    baseline: Path | None, sweep: list[Path] | None, figures: dict[str, Path]
+) -> list[str]:
     """Window counts per split and class (cf. 4.1.1), per object, and per sweep window."""
     if baseline is None:
         return []
@@ -229,6 +231,10 @@ def _dataset_parts(baseline: Path | None, sweep: list[Path] | None) -> list[str]
               *[d["splits"][s]["unstable"] for s in ("train", "val", "test")]] for d in sums],
             caption="Sweep datasets, trimmed from the longest window (same end, label, split)",
         ))  # fmt: skip
+    if "window" in figures:
+        parts.append(H.image(figures["window"], "window illustration", (
+            "One sample's observation window, offset and horizon (dashed) on its replay's "
+            "fingertip forces, with stable (green) and unstable (red) periods (cf. fig. 3.8).")))
     return parts
 
 
@@ -277,7 +283,7 @@ def write_report(
         ),
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         *_replay_parts(replay_summaries, figures),
-        *_dataset_parts(dataset_summary, sweep_summaries),
+        *_dataset_parts(dataset_summary, sweep_summaries, figures),
         "<h2>Provenance</h2>",
         H.table(
             ["item", "value"],

@@ -1,0 +1,87 @@
+"""The window illustration (cf. thesis fig. 3.8): observation window, offset and horizon of one
+sample drawn on its replay's fingertip forces, with the stable/unstable shading of eq. 23."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import polars as pl  # noqa: E402
+
+from graspstab.labels.interval import usable_interval  # noqa: E402
+from graspstab.labels.windows import step_counts, timestep_labels  # noqa: E402
+from graspstab.replay.replay_grasps import trace_key  # noqa: E402
+
+FINGERS = ("thumb", "index", "middle", "ring", "little")
+
+
+def pick_window(index: pl.DataFrame) -> dict[str, Any]:
+    """A sample worth showing: a mixed future (0 < r < 1) if any, else an unstable one, else the
+    first."""
+    for cond in ((pl.col("r") > 0) & (pl.col("r") < 1), pl.col("label") == 1, pl.lit(True)):
+        part = index.filter(cond)
+        if part.height:
+            return part.sort("sample_id").row(0, named=True)
+    raise ValueError("the dataset has no windows to illustrate")
+
+
+def plot_window(
+    index_path: str | Path, replay_dir: str | Path, labels: dict[str, Any], dt: float,
+    out_path: str | Path,
+) -> None:  # fmt: skip
+    """Draw :func:`pick_window`'s sample of a dataset on its replay (full span and a zoom); an
+    empty dataset gives a figure that says so."""
+    index = pl.read_parquet(index_path)
+    if index.height == 0:
+        fig, ax = plt.subplots(figsize=(6, 1.5))
+        ax.text(0.5, 0.5, "no labelled window in this run", ha="center", va="center")
+        ax.set_axis_off()
+        Path(out_path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(out_path, dpi=110)
+        plt.close(fig)
+        return
+    sample = pick_window(index)
+    w = sample["end"] - sample["start"]
+    _, o, h = step_counts(labels["window_s"], labels["offset_s"], labels["horizon_s"], dt)
+    gid, obj, shard = sample["grasp_id"], sample["object"], sample["shard"]
+    with np.load(Path(replay_dir) / obj / f"traces_{shard}.npz") as npz:
+        tr = {c: npz[trace_key(gid, c)] for c in ("velocity", "min_distance", "normal", "shear")}
+    speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
+    ui = usable_interval(speed, tr["min_distance"].astype(np.float64), dt, labels["settle"],
+                         labels["contact_loss_s"])  # fmt: skip
+    u = timestep_labels(speed, labels["v_slip"])
+    t = np.arange(len(speed)) * dt
+    s = sample["start"]
+    marks = [s, s + w, s + w + o, min(s + w + o + h, ui.contact_end)]
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex="col")
+    lo, hi = max(0, marks[0] - w), min(len(t), marks[3] + w)
+    for col, (a, b) in enumerate(((ui.settle_index, ui.contact_end), (lo, hi))):
+        for row, channel in enumerate(("normal", "shear")):
+            ax = axes[row, col]
+            for k, f in enumerate(FINGERS):
+                ax.plot(t[a:b], tr[channel][a:b, k], lw=0.8, label=f)
+            seg = u[a:b].astype(np.int8)
+            edges = np.concatenate([[0], np.flatnonzero(np.diff(seg)) + 1, [len(seg)]])
+            for e0, e1 in zip(edges[:-1], edges[1:], strict=True):
+                ax.axvspan(t[a + e0], t[a + e1 - 1], alpha=0.15, lw=0,
+                           color="tab:red" if seg[e0] else "tab:green")  # fmt: skip
+            for m in marks:
+                ax.axvline(t[min(m, len(t) - 1)], color="k", ls="--", lw=0.7)
+            ax.set_ylabel(f"{'ABCD'[2 * col + row]}  {channel} force [N]", fontsize=8)
+            ax.tick_params(labelsize=7)
+        axes[1, col].set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=6, ncol=5)
+    fig.suptitle(
+        f"{obj}, grasp {gid}: window [{marks[0]}, {marks[1]}), offset {o}, horizon to {marks[3]}; "
+        f"r = {sample['r']:.2%} unstable, label {sample['label']} (cf. thesis fig. 3.8)",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    Path(out_path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_path, dpi=110)
+    plt.close(fig)

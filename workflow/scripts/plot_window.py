@@ -1,0 +1,16 @@
+"""Snakemake wrapper: the window illustration of the baseline dataset (graspstab.labels.figure)."""
+
+from pathlib import Path
+
+from graspstab.common.logs import setup_logging
+from graspstab.labels.figure import plot_window
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+setup_logging(sm.log[0])
+plot_window(
+    sm.input.index,
+    Path(sm.input.traces[0]).parent.parent,
+    dict(sm.params.labels),
+    float(sm.params.dt),
+    sm.output[0],
+)
