@@ -16,15 +16,13 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from graspstab.common.runs import earliest_run
 from graspstab.replay.replay_grasps import trace_key
 
 
 def deep_for(dist: np.ndarray, depth: float, steps: int) -> bool:
     """Whether ``dist`` stays below ``-depth`` for ``steps`` consecutive rows."""
-    below = (np.nan_to_num(dist, nan=0.0) < -depth).astype(int)
-    if len(below) < steps:
-        return False
-    return bool((np.convolve(below, np.ones(steps, dtype=int), mode="valid") == steps).any())
+    return earliest_run(np.nan_to_num(dist, nan=0.0) < -depth, steps, len(dist)) is not None
 
 
 def main() -> None:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import atomic_path, write_json, write_parquet
+from graspstab.common.io import save_npy, write_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.labels.label_windows import label_windows, load_windows, normalisation
 from graspstab.labels.trim import trim_same_end
@@ -64,11 +64,7 @@ def trim_dataset(
     index = pl.read_parquet(ref / "index.parquet")
     steps = step_counts(window_s, 0.0, 0.0, dt)[0]
     trimmed, windows = trim_same_end(index, load_windows(ref), steps)
-    with atomic_path(out / "windows.npy") as tmp:
-        mm = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=windows.shape)
-        mm[:] = windows
-        mm.flush()
-        del mm
+    save_npy(out / "windows.npy", np.ascontiguousarray(windows, dtype=np.float32))
     write_json(out / "normalisation.json", normalisation(windows, trimmed))
     write_parquet(out / "index.parquet", trimmed, metadata={
         "window_steps": steps, "dt": dt, "window_s": window_s, "trimmed_from": str(ref),

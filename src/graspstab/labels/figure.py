@@ -13,11 +13,22 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import polars as pl  # noqa: E402
 
+from graspstab.hand.names import FINGERS  # noqa: E402
 from graspstab.labels.interval import usable_interval  # noqa: E402
 from graspstab.labels.windows import step_counts, timestep_labels  # noqa: E402
 from graspstab.replay.replay_grasps import trace_key  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
+
+def shade_periods(axes: list[Any], t: np.ndarray, u: np.ndarray, start: int, end: int) -> None:
+    """Shade rows [start, end) of every axis red where u_t = 1 and green where u_t = 0."""
+    seg = np.asarray(u[start:end], dtype=np.int8)
+    if len(seg) == 0:
+        return
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(seg)) + 1, [len(seg)]])
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        colour = "tab:red" if seg[a] else "tab:green"
+        for ax in axes:
+            ax.axvspan(t[start + a], t[start + b - 1], color=colour, alpha=0.15, lw=0)
 
 
 def pick_window(index: pl.DataFrame) -> dict[str, Any]:
@@ -65,11 +76,7 @@ def plot_window(
             ax = axes[row, col]
             for k, f in enumerate(FINGERS):
                 ax.plot(t[a:b], tr[channel][a:b, k], lw=0.8, label=f)
-            seg = u[a:b].astype(np.int8)
-            edges = np.concatenate([[0], np.flatnonzero(np.diff(seg)) + 1, [len(seg)]])
-            for e0, e1 in zip(edges[:-1], edges[1:], strict=True):
-                ax.axvspan(t[a + e0], t[a + e1 - 1], alpha=0.15, lw=0,
-                           color="tab:red" if seg[e0] else "tab:green")  # fmt: skip
+            shade_periods([ax], t, u, a, b)
             for m in marks:
                 ax.axvline(t[min(m, len(t) - 1)], color="k", ls="--", lw=0.7)
             ax.set_ylabel(f"{'ABCD'[2 * col + row]}  {channel} force [N]", fontsize=8)

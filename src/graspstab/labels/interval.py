@@ -16,20 +16,14 @@ from typing import Any
 
 import numpy as np
 
+from graspstab.common.runs import earliest_run
+
+__all__ = ["earliest_run", "settle_by_distance", "settle_by_speed", "usable_interval"]
+
 
 def steps_of(seconds: float, dt: float) -> int:
     """Whole steps in ``seconds`` (rounded to the nearest step: 0.1 s / 0.5 ms = 200)."""
     return int(round(seconds / dt))
-
-
-def earliest_run(ok: np.ndarray, length: int, limit: int) -> int | None:
-    """First index i with ``ok[i : i + length]`` all true and ``i + length <= limit``."""
-    n = min(len(ok), limit)
-    if length < 1 or n < length:
-        return None
-    run = np.convolve(ok[:n].astype(np.int64), np.ones(length, dtype=np.int64), mode="valid")
-    hits = np.flatnonzero(run == length)
-    return int(hits[0]) if len(hits) else None
 
 
 def settle_by_speed(speed: np.ndarray, dt: float, p: dict[str, Any]) -> int | None:

@@ -7,7 +7,7 @@ W x 5 fingertips x {normal, shear}). Writes into ``out_dir``:
 
 * ``index.parquet``: sample_id, object, grasp_id, shard, start, end (exclusive, s + W), r, label,
   split (the object's split: every window of a grasp shares it);
-* ``windows.npy``: float32 (N, W, 5, 2), written through a memory map, for training to map;
+* ``windows.npy``: float32 (N, W, 5, 2), for training to memory-map;
 * ``normalisation.json``: per fingertip x channel mean and std over the training windows' time
   steps only, the std floored at ``eps`` (3.5.2).
 """
@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import atomic_path, write_json, write_parquet
+from graspstab.common.io import save_npy, write_json, write_parquet
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
 from graspstab.replay.replay_grasps import trace_key
@@ -99,11 +99,7 @@ def label_windows(
                 "end": pl.Int64, "r": pl.Float64, "label": pl.Int8, "split": pl.String},
     ).with_row_index("sample_id")  # fmt: skip
     windows = np.concatenate(chunks) if chunks else np.zeros((0, w, 5, 2), np.float32)
-    with atomic_path(out / "windows.npy") as tmp:
-        mm = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.float32, shape=windows.shape)
-        mm[:] = windows
-        mm.flush()
-        del mm
+    save_npy(out / "windows.npy", np.ascontiguousarray(windows, dtype=np.float32))
     write_json(out / "normalisation.json", normalisation(windows, index, eps))
     write_parquet(out / "index.parquet", index, metadata={"window_steps": w, "dt": dt,
                                                           "window_s": window_s})  # fmt: skip

@@ -16,9 +16,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import polars as pl  # noqa: E402
 
+from graspstab.hand.names import FINGERS  # noqa: E402
 from graspstab.replay.replay_grasps import trace_key  # noqa: E402
 
-FINGERS = ("thumb", "index", "middle", "ring", "little")
 CHANNELS = ("position", "velocity", "min_distance", "normal", "shear")
 
 
@@ -69,16 +69,10 @@ def plot_replay_trace(
             ax.legend(fontsize=6, ncol=5, loc="upper right")
     axes[3].axhline(1.2, color="k", ls="--", lw=0.6)  # 3.3.2's instability threshold
     if shading is not None:
+        from graspstab.labels.figure import shade_periods
+
         settle, end, u = shading
-        end = min(end, len(t))
-        if end > settle:
-            seg = np.asarray(u[settle:end], dtype=np.int8)
-            edges = np.flatnonzero(np.diff(seg)) + 1
-            bounds = np.concatenate([[0], edges, [len(seg)]])
-            for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-                colour = "tab:red" if seg[a] else "tab:green"
-                for ax in axes:
-                    ax.axvspan(t[settle + a], t[settle + b - 1], color=colour, alpha=0.15, lw=0)
+        shade_periods(axes, t, u, settle, min(end, len(t)))
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()

@@ -24,6 +24,7 @@ import polars as pl
 from graspstab.common.io import save_npz, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
+from graspstab.common.runs import earliest_run
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 
@@ -43,13 +44,7 @@ def summarise_replay(
     dist = traces["min_distance"].astype(np.float64)
     defined = np.isfinite(dist)
     # first run of undefined d_t at least loss_steps long (3.3.1's rule, here from t = 0)
-    loss = None
-    run = 0
-    for t, ok in enumerate(defined):
-        run = 0 if ok else run + 1
-        if run >= loss_steps:
-            loss = t - run + 1
-            break
+    loss = earliest_run(~defined, loss_steps, len(dist))
     speed_end = float(np.linalg.norm(traces["velocity"][-1])) if len(pos) else float("nan")
     return {
         "steps": result.steps,
