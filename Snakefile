@@ -10,6 +10,7 @@ include: "workflow/rules/hand.smk"
 include: "workflow/rules/synthesis.smk"
 include: "workflow/rules/replay.smk"
 include: "workflow/rules/dataset.smk"
+include: "workflow/rules/train.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -1,4 +1,4 @@
-"""End to end: the current DAG for one object in a temporary directory, through Snakemake."""
+"""End to end: the whole DAG for three objects (train, val, test) in a temporary directory."""
 
 from __future__ import annotations
 
@@ -15,14 +15,27 @@ import pytest
 from tests.conftest import REPO
 
 OBJECT = "061_foam_brick"
+# One object per split (lemon moved to validation): the learning studies need all three. These
+# three yield held grasps at the toy settings below, so every split has windows.
+OBJECTS = "only_objects=[061_foam_brick,014_lemon,077_rubiks_cube]"
+SPLITS = "objects={items: {014_lemon: {split: val}}}"
 # Coarse CoACD settings keep the toy run fast; the defaults are exercised in the 12-object run.
 FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_resolution: 30}}"
-# Two shards of three grasps, a short schedule, batches of two (so batching is exercised).
+# Two shards of four grasps, a short schedule, batches of four (so batching is exercised).
 TOY_SYNTHESIS = (
-    "synthesis={shards: 2, grasps_per_shard: 3, annealing: {iterations: 60, batch_size: 2}}"
+    "synthesis={shards: 2, grasps_per_shard: 4, annealing: {iterations: 1500, batch_size: 4}}"
 )
 # Replays of 1 s in chunks of 0.25 s.
 TOY_REPLAY = "replay={steps: 2000, chunk_steps: 500}"
+# Every learning study at toy size: one seed, two epochs, one tuning trial, two sweep windows.
+TOY_LEARNING = [
+    "train={seeds: [42], max_epochs: 2, patience: 1}",
+    "tune={trials: 1}",
+    "sweep={windows_s: [0.01, 0.02], seeds: [42]}",
+    "splits={count: 2, seeds: [42]}",
+    "latency={repeats: 5, warmup: 1}",
+]
+CONFIG = ["--config", OBJECTS, SPLITS, FAST, TOY_SYNTHESIS, TOY_REPLAY, *TOY_LEARNING]
 
 
 def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
@@ -45,7 +58,7 @@ def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.Com
 def run(tmp_path_factory, ycb_dir, hand_assets_dir):
     workdir = tmp_path_factory.mktemp("wf")
     env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    config = ["--config", f"only_objects=[{OBJECT}]", FAST, TOY_SYNTHESIS, TOY_REPLAY]
+    config = CONFIG
     proc = _snakemake(workdir, "results/report.html", *config, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     return workdir, env, config
@@ -86,12 +99,12 @@ def test_grasp_shards_and_summary(run):
     workdir, _, _ = run
     grasps = workdir / "results" / "grasps" / OBJECT
     tables = [pl.read_parquet(grasps / f"shard_{k}.parquet") for k in range(2)]
-    assert [t.height for t in tables] == [3, 3]
+    assert [t.height for t in tables] == [4, 4]
     ids = pl.concat(tables)["grasp_id"].to_list()
-    assert sorted(ids) == list(range(6))  # unique across shards
+    assert sorted(ids) == list(range(8))  # unique across shards
     assert (pl.concat(tables)["energy"] <= pl.concat(tables)["energy_start"]).all()
     summary = json.loads((grasps / "summary.json").read_text())
-    assert summary["grasps"] == 6 and summary["shards"] == 2
+    assert summary["grasps"] == 8 and summary["shards"] == 2
 
 
 @pytest.mark.workflow
@@ -126,9 +139,11 @@ def test_datasets_baseline_and_sweep(run):
     data = workdir / "results" / "datasets"
     base = pl.read_parquet(data / "baseline" / "index.parquet")
     assert np.load(data / "baseline" / "windows.npy", mmap_mode="r").shape[1:] == (400, 5, 2)
-    assert set(base["split"].unique()) <= {"train"}  # the one object is a training object
+    assert set(base["split"].unique()) == {"train", "val", "test"}
+    splits = {"061_foam_brick": "train", "014_lemon": "val", "077_rubiks_cube": "test"}
+    assert all(splits[o] == s for o, s in base.select("object", "split").unique().iter_rows())
     ref = pl.read_parquet(data / "sweep" / "reference" / "index.parquet")
-    for ms in (10, 200, 500):
+    for ms in (10, 20):
         sweep = pl.read_parquet(data / "sweep" / f"w{ms}ms" / "index.parquet")
         windows = np.load(data / "sweep" / f"w{ms}ms" / "windows.npy", mmap_mode="r")
         assert windows.shape == (ref.height, ms * 2, 5, 2)
@@ -153,10 +168,12 @@ def test_report_is_self_contained(run):
     html = (workdir / "results" / "report.html").read_text()
     assert OBJECT in html and "Provenance" in html and "Grasp synthesis" in html
     assert "Grasp replay" in html and "Window datasets" in html
+    assert "Learning and evaluation" in html
     # no external requests: no http(s) sources or stylesheets
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
-    assert len(images) == 8  # objects, hand x2, pre-grasp, gallery, histograms, replay, window
+    # objects, hand x2, pre-grasp, gallery, histograms, replay, window + 11 learning figures
+    assert len(images) == 8 + 11
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -183,3 +200,52 @@ def test_bad_config_stops_at_load_time(tmp_path, ycb_dir, hand_assets_dir):
     out = proc.stdout + proc.stderr
     assert "014_lemon" in out and "'split'" in out
     assert not (tmp_path / "results").exists()
+
+
+@pytest.mark.workflow
+def test_learning_studies(run):
+    import polars as pl
+    import torch
+
+    from graspstab.learning.models import build_model
+
+    workdir, _, _ = run
+    res = workdir / "results"
+    for model in ("cnn", "gru", "lstm"):
+        run_dir = res / "train" / "baseline" / model / "seed42"
+        metrics = json.loads((run_dir / "metrics.json").read_text())
+        assert metrics["family"] == model and metrics["window_steps"] == 400
+        assert metrics["epochs_run"] <= 2 and metrics["val"]["n"] > 0 and metrics["test"]["n"] > 0
+        assert set(metrics["test_objects"]) == {"077_rubiks_cube"}
+        predictions = pl.read_parquet(run_dir / "predictions.parquet")
+        assert set(predictions["split"]) == {"val", "test"}
+        ckpt = torch.load(run_dir / "model.pt", weights_only=False)
+        build_model(ckpt["model"]).load_state_dict(ckpt["state_dict"])  # loads as saved
+        best = json.loads((res / "tune" / model / "best.json").read_text())
+        assert best["spec"]["family"] == model and best["trials"]["complete"] >= 1
+        for ms in (10, 20):
+            sweep = res / "train" / "sweep" / model / f"w{ms}ms" / "seed42" / "metrics.json"
+            assert json.loads(sweep.read_text())["window_steps"] == ms * 2
+    baseline = pl.read_parquet(res / "studies" / "baseline" / "summary.parquet")
+    assert baseline.height == 6  # three families x {val, test}
+    latency = pl.read_parquet(res / "studies" / "latency.parquet")
+    assert latency.height == 3 + 3 * 2 and (latency["median_ms"] > 0).all()
+    splits = json.loads((res / "studies" / "splits" / "summary.json").read_text())
+    assert splits["assignments"] == 2
+    proxy = json.loads((res / "studies" / "proxy.json").read_text())
+    assert proxy["test"]["n"] == metrics["test"]["n"]
+
+
+@pytest.mark.workflow
+def test_learning_rate_change_reruns_that_model_only(run):
+    workdir, env, config = run
+    changed = [*config, "model={gru: {learning_rate: 0.002}}"]
+    proc = _snakemake(workdir, "results/report.html", "--dry-run", *changed, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    jobs = set(re.findall(r"^(\w+)\s+\d+$", proc.stdout, flags=re.M)) - {"total"}
+    assert {"train_model", "tune_model", "train_sweep_model", "aggregate_baseline"} <= jobs
+    assert {"aggregate_sweep", "measure_latency", "report"} <= jobs
+    # the split study trains the LSTM, and nothing upstream of training depends on a model
+    assert not jobs & {"train_split_model", "aggregate_splits", "label_windows", "replay_grasps"}
+    models = set(re.findall(r"wildcards: model=(\w+)", proc.stdout))
+    assert models == {"gru"}

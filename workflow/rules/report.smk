@@ -1,4 +1,4 @@
-# The self-contained HTML report; at this stage it covers objects, hand, synthesis and replay.
+# The self-contained HTML report: every stage, from the objects to the learning studies (chapter 4).
 
 
 rule report:
@@ -29,6 +29,8 @@ rule report:
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,
         histograms=rules.plot_grasps.output.histograms,
+        studies=rules.studies.input,
+        learning_figures=rules.plot_learning.output,
     output:
         "results/report.html",
     params:

@@ -28,4 +28,6 @@ write_report(
     replay_summaries=[Path(p) for p in sm.input.replay_summaries],
     dataset_summary=Path(sm.input.dataset_summary),
     sweep_summaries=[Path(p) for p in sm.input.sweep_summaries],
+    learning_results=Path("results"),
+    learning_figures={Path(p).stem: Path(p) for p in sm.input.learning_figures},
 )

@@ -13,6 +13,7 @@ import graspstab
 from graspstab.common.io import read_json, write_text
 from graspstab.common.provenance import stable_hash
 from graspstab.report import html as H
+from graspstab.report.learning import learning_section
 from graspstab.report.provenance import git_commit, package_versions, read_benchmark
 
 log = logging.getLogger(__name__)
@@ -250,8 +251,11 @@ def write_report(
     replay_summaries: list[Path] | None = None,
     dataset_summary: Path | None = None,
     sweep_summaries: list[Path] | None = None,
+    learning_results: Path | None = None,
+    learning_figures: dict[str, Path] | None = None,
 ) -> None:
-    """Assemble the report from the artefacts the workflow produced."""
+    """Assemble the report from the artefacts the workflow produced (the learning section from
+    ``learning_results``, the results directory, when given)."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -259,8 +263,8 @@ def write_report(
     profile = config["profile_name"]
     sections = [
         f'<p class="note">Profile <b>{H.esc(profile)}</b>, {len(metas)} objects. This report '
-        "covers the stages built so far (objects, hand, grasp synthesis, replay); later stages "
-        "add datasets and models. A quick-profile run is a smoke test of the pipeline, not a "
+        "covers every stage: objects, hand, grasp synthesis, replay, window datasets and the "
+        "learning studies. A quick-profile run is a smoke test of the pipeline, not a "
         "reproduction of the reference's numbers.</p>",
         "<h2>Objects</h2>",
         _objects_section(config, metas, bench),
@@ -284,6 +288,11 @@ def write_report(
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         *_replay_parts(replay_summaries, figures),
         *_dataset_parts(dataset_summary, sweep_summaries, figures),
+        *(
+            [learning_section(learning_results, learning_figures or {}, config)]
+            if learning_results is not None
+            else []
+        ),
         "<h2>Provenance</h2>",
         H.table(
             ["item", "value"],

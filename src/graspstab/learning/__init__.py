@@ -1,0 +1,1 @@
+"""Learning stage (thesis 3.4-3.5): model architectures and training."""

@@ -1,0 +1,167 @@
+"""Multi-seed summaries of the studies (thesis 3.5.4, 4.3-4.5): mean and std across seeds.
+
+Per-seed ``metrics.json`` records become one long table (one row per run and split); the
+studies' tables are grouped means and standard deviations of it, the sweep's latency-aware
+choice and the split-robustness summary are computed from those.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+METRICS = (
+    "loss", "accuracy", "precision", "recall", "f1", "auroc", "auprc",
+    "tp", "fp", "tn", "fn", "false_positive_rate", "miss_rate", "threshold",
+)  # fmt: skip
+
+
+def run_rows(
+    records: Iterable[Mapping[str, Any]], keys: Sequence[Mapping[str, Any]]
+) -> pl.DataFrame:
+    """One row per (run, split in val/test): the run's ``keys`` (e.g. window, assignment), its
+    family, seed, best epoch, threshold rule and every metric of ``METRICS``."""
+    rows = []
+    for record, key in zip(records, keys, strict=True):
+        for split in ("val", "test"):
+            m = record[split]
+            row = {**key, "family": record["family"], "seed": int(record["seed"]),
+                   "split": split, "best_epoch": int(record["best_epoch"]),
+                   "threshold_rule": record["threshold"]["rule"], "n": int(m["n"]),
+                   "n_unstable": int(m["n_unstable"])}  # fmt: skip
+            row.update({k: _float(m[k]) for k in METRICS if k != "threshold"})
+            row["threshold"] = float(record["threshold"]["threshold"])
+            rows.append(row)
+    return pl.DataFrame(rows, infer_schema_length=None)
+
+
+def object_rows(
+    records: Iterable[Mapping[str, Any]], keys: Sequence[Mapping[str, Any]]
+) -> pl.DataFrame:
+    """One row per (run, split, object) with the per-object metrics (figure 4.3)."""
+    rows = []
+    for record, key in zip(records, keys, strict=True):
+        for split in ("val", "test"):
+            for obj, m in record[f"{split}_objects"].items():
+                row = {**key, "family": record["family"], "seed": int(record["seed"]),
+                       "split": split, "object": obj}  # fmt: skip
+                row.update({k: _float(m[k]) for k in METRICS if k in m})
+                rows.append(row)
+    return pl.DataFrame(rows, infer_schema_length=None)
+
+
+def _float(value: Any) -> float:
+    return float("nan") if value is None else float(value)
+
+
+def mean_std(
+    frame: pl.DataFrame, by: Sequence[str], metrics: Sequence[str] = METRICS
+) -> pl.DataFrame:
+    """Mean and sample standard deviation (ddof 1) of each metric across seeds, ignoring NaN
+    (an undefined metric), with the number of seeds that defined it."""
+    aggs = []
+    for m in metrics:
+        if m not in frame.columns:
+            continue
+        col = pl.col(m).fill_nan(None)
+        aggs += [col.mean().alias(f"{m}_mean"), col.std(ddof=1).alias(f"{m}_std"),
+                 col.count().alias(f"{m}_n")]  # fmt: skip
+    return (
+        frame.group_by(list(by), maintain_order=True)
+        .agg(pl.col("seed").n_unique().alias("seeds"), *aggs)
+        .sort(list(by))
+    )
+
+
+def error_table(frame: pl.DataFrame) -> pl.DataFrame:
+    """Table 4.3: test false positives and false negatives per family (mean, std) with the
+    false-positive rate (over stable windows) and miss rate (over unstable windows)."""
+    test = frame.filter(pl.col("split") == "test")
+    return test.group_by("family", maintain_order=True).agg(
+        pl.col("fp").mean().alias("fp_mean"), pl.col("fp").std(ddof=1).alias("fp_std"),
+        pl.col("fn").mean().alias("fn_mean"), pl.col("fn").std(ddof=1).alias("fn_std"),
+        (pl.col("n") - pl.col("n_unstable")).first().alias("stable"),
+        pl.col("n_unstable").first().alias("unstable"),
+    ).with_columns(
+        (pl.col("fp_mean") / pl.col("stable")).alias("false_positive_rate"),
+        (pl.col("fn_mean") / pl.col("unstable")).alias("miss_rate"),
+    ).sort("family")  # fmt: skip
+
+
+def latency_aware_choice(table: pl.DataFrame) -> dict[str, Any]:
+    """The sweep's operating point (4.5), stated precisely: among all (family, window)
+    configurations, those whose mean validation AUPRC is at least the best configuration's mean
+    minus that configuration's standard deviation across seeds; of those, the one with the
+    lowest total decision latency (window duration + median inference latency).
+
+    ``table`` needs family, window_s, val_auprc_mean, val_auprc_std, total_latency_ms."""
+    valid = table.filter(pl.col("val_auprc_mean").fill_nan(None).is_not_null())
+    if valid.is_empty():
+        return {"rule": LATENCY_RULE, "defined": False,
+                "reason": "no configuration has a defined validation AUPRC"}  # fmt: skip
+    ranked = valid.sort(["val_auprc_mean", "total_latency_ms"], descending=[True, False])
+    best = ranked.row(0, named=True)
+    std = best["val_auprc_std"]
+    std = 0.0 if std is None or math.isnan(std) else float(std)
+    cutoff = best["val_auprc_mean"] - std
+    pick = (
+        valid.filter(pl.col("val_auprc_mean") >= cutoff)
+        .sort(["total_latency_ms", "val_auprc_mean"], descending=[False, True], nulls_last=True)
+        .row(0, named=True)
+    )
+    return {"rule": LATENCY_RULE, "defined": True, "cutoff": cutoff, "best": _pick(best),
+            "pick": _pick(pick)}  # fmt: skip
+
+
+LATENCY_RULE = (
+    "lowest total decision latency among configurations whose mean validation AUPRC is within "
+    "one standard deviation (across seeds) of the best configuration's mean"
+)
+
+
+def _pick(row: Mapping[str, Any]) -> dict[str, Any]:
+    keys = ("family", "window_s", "val_auprc_mean", "val_auprc_std", "total_latency_ms",
+            "latency_ms")  # fmt: skip
+    return {k: row[k] for k in keys if k in row}
+
+
+def best_windows(table: pl.DataFrame) -> pl.DataFrame:
+    """Each family's window with the highest mean validation AUPRC (the stars of fig. 4.7)."""
+    return (
+        table.filter(pl.col("val_auprc_mean").is_not_nan())
+        .sort(["family", "val_auprc_mean"], descending=[False, True])
+        .group_by("family", maintain_order=True)
+        .first()
+    )
+
+
+def split_summary(frame: pl.DataFrame, hardest: int = 5) -> dict[str, Any]:
+    """Split robustness (4.4): test AUPRC per assignment (mean over seeds), then its mean, std,
+    median and minimum across assignments, the fixed split's value and the hardest pairings.
+
+    ``frame``: rows of split "test" with assignment (int, 0 = fixed split), val_objects,
+    test_objects, seed, auprc."""
+    per = (
+        frame.group_by(["assignment", "val_objects", "test_objects"], maintain_order=True)
+        .agg(pl.col("auprc").fill_nan(None).mean().alias("auprc"),
+             pl.col("auprc").fill_nan(None).std(ddof=1).alias("auprc_std"),
+             pl.col("seed").n_unique().alias("seeds"))
+        .sort("assignment")
+    )  # fmt: skip
+    values = per["auprc"].drop_nulls().to_numpy()
+    fixed = per.filter(pl.col("assignment") == 0)["auprc"]
+    return {
+        "assignments": int(len(per)),
+        "defined": int(len(values)),
+        "mean": float(np.mean(values)) if len(values) else float("nan"),
+        "std": float(np.std(values, ddof=1)) if len(values) > 1 else float("nan"),
+        "median": float(np.median(values)) if len(values) else float("nan"),
+        "min": float(np.min(values)) if len(values) else float("nan"),
+        "fixed_split": float(fixed[0]) if len(fixed) and fixed[0] is not None else float("nan"),
+        "hardest": per.drop_nulls("auprc").sort("auprc").head(hardest).to_dicts(),
+        "per_assignment": per.to_dicts(),
+    }

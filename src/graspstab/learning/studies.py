@@ -1,0 +1,181 @@
+"""Study-level entry points (thesis 4.3-4.7): aggregate per-seed runs, measure latency, score the
+friction-ratio proxy. Each writes Parquet tables and a JSON summary that the report reads."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+import torch
+
+from graspstab.common.io import read_json, write_json, write_parquet
+from graspstab.common.logs import setup_logging
+from graspstab.learning import aggregate
+from graspstab.learning.data import load_window_data
+from graspstab.learning.latency import measure_latency
+from graspstab.learning.models import build_model
+from graspstab.learning.proxy import friction_ratio, proxy_metrics
+
+log = logging.getLogger("graspstab.learning")
+
+
+def _records(paths: Sequence[str | Path]) -> list[dict[str, Any]]:
+    return [read_json(p) for p in paths]
+
+
+def aggregate_baseline(
+    metrics: Sequence[str | Path], out_dir: str | Path, log_file: str | Path | None = None
+) -> dict[str, Any]:
+    """Fixed-task benchmark (4.3): per-run table, mean +- std per family and split, per-object
+    test metrics and the error table (table 4.3)."""
+    setup_logging(log_file)
+    out = Path(out_dir)
+    records = _records(metrics)
+    keys = [{"window_s": None} for _ in records]
+    runs = aggregate.run_rows(records, keys).drop("window_s")
+    summary = aggregate.mean_std(runs, ["family", "split"])
+    objects = aggregate.object_rows(records, keys).drop("window_s")
+    errors = aggregate.error_table(runs)
+    write_parquet(out / "runs.parquet", runs)
+    write_parquet(out / "summary.parquet", summary)
+    write_parquet(out / "objects.parquet", objects)
+    write_parquet(out / "errors.parquet", errors)
+    result = {
+        "summary": summary.to_dicts(),
+        "errors": errors.to_dicts(),
+        "parameters": {r["family"]: r["parameters"] for r in records},
+        "seconds_per_epoch": aggregate.mean_std(
+            pl.DataFrame([{"family": r["family"], "seed": r["seed"],
+                           "seconds_per_epoch": r["seconds_per_epoch"]} for r in records]),
+            ["family"], ["seconds_per_epoch"],
+        ).to_dicts(),
+    }  # fmt: skip
+    write_json(out / "summary.json", result)
+    log.info("baseline benchmark over %d runs:\n%s", len(records), summary.select(
+        "family", "split", "auprc_mean", "auprc_std", "f1_mean", "f1_std"))  # fmt: skip
+    return result
+
+
+def load_checkpoint(path: str | Path) -> tuple[torch.nn.Module, dict[str, Any]]:
+    """A trained model (eval mode) and its checkpoint record."""
+    ckpt = torch.load(path, map_location="cpu", weights_only=False)
+    model = build_model(ckpt["model"])
+    model.load_state_dict(ckpt["state_dict"])
+    return model.eval(), ckpt
+
+
+def measure_latencies(
+    checkpoints: Sequence[str | Path],
+    keys: Sequence[Mapping[str, Any]],
+    out_table: str | Path,
+    repeats: int,
+    warmup: int,
+    threads: int = 1,
+    log_file: str | Path | None = None,
+) -> pl.DataFrame:
+    """CPU batch-1 latency of every checkpoint (4.5); ``keys`` (study, family, window_s) label
+    the rows."""
+    setup_logging(log_file)
+    torch.set_num_threads(max(1, int(threads)))
+    rows = []
+    for path, key in zip(checkpoints, keys, strict=True):
+        model, ckpt = load_checkpoint(path)
+        m = measure_latency(model, int(ckpt["window_steps"]), repeats=repeats, warmup=warmup)
+        rows.append({**key, "window_steps": int(ckpt["window_steps"]), **m})
+        log.info("%s: %.3f +- %.3f ms (median +- std), %.0f windows/s", key, m["median_ms"],
+                 m["std_ms"], m["throughput_per_s"])  # fmt: skip
+    table = pl.DataFrame(rows, infer_schema_length=None)
+    write_parquet(out_table, table)
+    return table
+
+
+def aggregate_sweep(
+    metrics: Sequence[str | Path],
+    keys: Sequence[Mapping[str, Any]],
+    latency_table: str | Path,
+    out_dir: str | Path,
+    log_file: str | Path | None = None,
+) -> dict[str, Any]:
+    """Window-length sweep (4.5): metrics per family and window (mean +- std over seeds), total
+    decision latency, each family's best window and the latency-aware operating point."""
+    setup_logging(log_file)
+    out = Path(out_dir)
+    records = _records(metrics)
+    runs = aggregate.run_rows(records, keys)
+    summary = aggregate.mean_std(runs, ["family", "window_s", "split"])
+    latency = pl.read_parquet(latency_table).filter(pl.col("study") == "sweep")
+    val = (
+        summary.filter(pl.col("split") == "val")
+        .select("family", "window_s", "auprc_mean", "auprc_std")
+        .rename({"auprc_mean": "val_auprc_mean", "auprc_std": "val_auprc_std"})
+        .join(latency.select("family", "window_s", pl.col("median_ms").alias("latency_ms"),
+                             pl.col("std_ms").alias("latency_std_ms")),
+              on=["family", "window_s"], how="left")
+        .with_columns((pl.col("window_s") * 1e3 + pl.col("latency_ms")).alias("total_latency_ms"))
+    )  # fmt: skip
+    choice = aggregate.latency_aware_choice(val)
+    best = aggregate.best_windows(val)
+    write_parquet(out / "runs.parquet", runs)
+    write_parquet(out / "summary.parquet", summary)
+    write_parquet(out / "operating_points.parquet", val)
+    result = {"choice": choice, "best_windows": best.to_dicts()}
+    write_json(out / "summary.json", result)
+    log.info("sweep operating points:\n%s\nchoice: %s", val, choice)
+    return result
+
+
+def aggregate_splits(
+    metrics: Sequence[str | Path],
+    assignments: Sequence[Mapping[str, str]],
+    out_dir: str | Path,
+    log_file: str | Path | None = None,
+) -> dict[str, Any]:
+    """Split robustness (4.4): test AUPRC per sampled assignment and its distribution."""
+    setup_logging(log_file)
+    out = Path(out_dir)
+    records = _records(metrics)
+    keys = []
+    for record in records:
+        k = int(record["assignment_index"])
+        a = assignments[k]
+        keys.append(
+            {"assignment": k, **{f"{split}_objects": ", ".join(sorted(o for o, s in a.items()
+                                                                     if s == split))
+                                 for split in ("val", "test")}}
+        )  # fmt: skip
+    runs = aggregate.run_rows(records, keys)
+    summary = aggregate.split_summary(runs.filter(pl.col("split") == "test"))
+    write_parquet(out / "runs.parquet", runs)
+    write_json(out / "summary.json", summary)
+    log.info("split robustness: mean %.4f std %.4f median %.4f min %.4f fixed %.4f",
+             summary["mean"], summary["std"], summary["median"], summary["min"],
+             summary["fixed_split"])  # fmt: skip
+    return summary
+
+
+def evaluate_proxy(
+    dataset_dir: str | Path, out_json: str | Path, log_file: str | Path | None = None
+) -> dict[str, Any]:
+    """Friction-ratio proxy (4.7) on the raw (un-normalised) windows of validation and test."""
+    setup_logging(log_file)
+    data = load_window_data(dataset_dir)
+    result: dict[str, Any] = {}
+    for split in ("val", "test"):
+        rows = data.rows(split)
+        scores = friction_ratio(data.windows[rows]) if len(rows) else np.zeros(0)
+        labels = data.labels(rows)
+        result[split] = {**proxy_metrics(scores, labels), "n": int(len(rows)),
+                         "n_unstable": int(labels.sum())}  # fmt: skip
+        result[f"{split}_objects"] = {
+            obj: proxy_metrics(scores[mask], labels[mask])
+            for obj in sorted(set(data.objects(rows)))
+            for mask in [data.objects(rows) == obj]
+        }
+    write_json(out_json, result)
+    log.info("friction-ratio proxy: val AUPRC %.4f, test AUPRC %.4f",
+             result["val"]["auprc"], result["test"]["auprc"])  # fmt: skip
+    return result

@@ -1,0 +1,200 @@
+"""The shared training loop (thesis 3.5.2): BCEWithLogits, AdamW, clipping, best-epoch selection.
+
+Every family trains through ``fit``: at most ``max_epochs`` epochs, validation after each, the best
+epoch's weights kept (by validation AUPRC unless configured otherwise), early stopping after
+``patience`` epochs without an improvement larger than ``min_delta``. A seed fixes the weights,
+the batch order and dropout, so the same seed gives the same metrics.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from graspstab.learning.data import WindowData
+from graspstab.learning.metrics import binary_metrics
+
+log = logging.getLogger("graspstab.learning")
+
+SELECTION_METRICS = ("auprc", "auroc", "loss")
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """The training protocol of one run (3.5.2, table 4.2)."""
+
+    max_epochs: int = 40  # 3.5.2
+    batch_size: int = 256  # table 4.2
+    learning_rate: float = 1e-3  # table 4.2 (LSTM 5e-4)
+    weight_decay: float = 1e-4  # table 4.2
+    grad_clip: float = 1.0  # max gradient norm; searched by Optuna (table 4.1)
+    patience: int = 10  # table 4.2
+    min_delta: float = 0.0  # minimum improvement that resets patience (table 4.1)
+    selection_metric: str = "auprc"  # 3.5.2: best epoch by validation AUPRC
+    class_weighting: bool = False  # weight unstable examples by class frequency (table 4.1)
+    eval_batch_size: int = 1024
+
+    @classmethod
+    def from_config(cls, train: Mapping[str, Any], model: Mapping[str, Any]) -> TrainSettings:
+        """Settings from the train group, with the model's own learning rate and any per-model
+        training overrides (keys of this class present in the model spec win)."""
+        names = {f for f in cls.__dataclass_fields__}
+        values = {k: v for k, v in train.items() if k in names}
+        values.update({k: v for k, v in model.items() if k in names})
+        if values.get("selection_metric", "auprc") not in SELECTION_METRICS:
+            raise ValueError(
+                f"selection_metric {values['selection_metric']!r} unknown; "
+                f"valid: {SELECTION_METRICS}"
+            )
+        return cls(**values)
+
+
+@dataclass
+class FitResult:
+    """What ``fit`` returns: the best epoch's weights and the per-epoch history."""
+
+    state_dict: dict[str, torch.Tensor]
+    best_epoch: int
+    selection_metric: str  # the metric actually used (loss when validation has one class)
+    history: list[dict[str, float]] = field(default_factory=list)
+    stopped_early: bool = False
+    seconds: float = 0.0
+
+
+def seed_everything(seed: int) -> np.random.Generator:
+    """Seed torch (weights, dropout) and return the numpy stream for batch order."""
+    torch.manual_seed(seed)
+    torch.use_deterministic_algorithms(True, warn_only=True)
+    return np.random.default_rng(seed)
+
+
+def predict_logits(
+    model: nn.Module, data: WindowData, rows: np.ndarray, batch_size: int
+) -> np.ndarray:
+    """Logits of ``rows`` in evaluation mode."""
+    model.eval()
+    out = np.empty(len(rows), dtype=np.float64)
+    with torch.inference_mode():
+        i = 0
+        for chunk, x in data.batches(rows, batch_size):
+            out[i : i + len(chunk)] = model(x).double().numpy()
+            i += len(chunk)
+    return out
+
+
+def sigmoid(z: np.ndarray) -> np.ndarray:
+    """Numerically stable logistic function (eq. 31)."""
+    return np.exp(-np.logaddexp(0.0, -z))
+
+
+def evaluate(model: nn.Module, data: WindowData, split: str, batch_size: int) -> dict[str, float]:
+    """Loss, AUROC and AUPRC of one split (threshold-free; the threshold comes later)."""
+    rows = data.rows(split)
+    if len(rows) == 0:  # an assignment whose objects have no usable window: nothing to score
+        return {"loss": math.nan, "auroc": math.nan, "auprc": math.nan}
+    logits = predict_logits(model, data, rows, batch_size)
+    m = binary_metrics(sigmoid(logits), data.labels(rows), 0.5, logits=logits)
+    return {"loss": m["loss"], "auroc": m["auroc"], "auprc": m["auprc"]}
+
+
+def _score(metrics: Mapping[str, float], name: str) -> float:
+    """Higher is better for every selection metric (loss is negated)."""
+    return -metrics["loss"] if name == "loss" else metrics[name]
+
+
+def fit(
+    model: nn.Module,
+    data: WindowData,
+    settings: TrainSettings,
+    seed: int,
+    on_epoch: Callable[[int, dict[str, float]], None] | None = None,
+) -> FitResult:
+    """Train ``model`` on the train split, selecting the best epoch on the validation split.
+
+    ``on_epoch(epoch, history_row)`` is called after every epoch (Optuna's pruning hook may
+    raise to stop the run)."""
+    rng = seed_everything(seed)
+    train_rows = data.rows("train")
+    if len(train_rows) == 0:
+        raise ValueError(f"{data.source}: no training windows in this split assignment")
+    y_train = data.labels(train_rows)
+    stable, unstable = data.class_counts("val")
+    metric = settings.selection_metric
+    if metric != "loss" and (stable == 0 or unstable == 0):
+        log.warning(
+            "validation split has %d stable and %d unstable windows: %s is undefined, "
+            "selecting epochs by validation loss instead",
+            stable, unstable, metric.upper(),
+        )  # fmt: skip
+        metric = "loss"
+    pos_weight = None
+    if settings.class_weighting and y_train.sum() > 0:
+        pos_weight = torch.tensor((len(y_train) - y_train.sum()) / y_train.sum())
+    loss_fn = nn.BCEWithLogitsLoss(pos_weight=pos_weight)
+    optimiser = torch.optim.AdamW(
+        model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay
+    )
+    best_score, best_epoch = -math.inf, 0
+    best_state = copy.deepcopy(model.state_dict())
+    history: list[dict[str, float]] = []
+    since_best, stopped_early = 0, False
+    start = time.perf_counter()
+    for epoch in range(1, settings.max_epochs + 1):
+        t0 = time.perf_counter()
+        model.train()
+        order = rng.permutation(len(train_rows))
+        total, seen = 0.0, 0
+        for i in range(0, len(order), settings.batch_size):
+            rows = train_rows[order[i : i + settings.batch_size]]
+            if len(rows) < 2 and seen:  # a batch of one breaks batch norm; drop the remainder
+                continue
+            x, y = data.batch(rows), torch.from_numpy(data.labels(rows))
+            optimiser.zero_grad(set_to_none=True)
+            loss = loss_fn(model(x), y)
+            loss.backward()
+            if settings.grad_clip > 0:
+                nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
+            optimiser.step()
+            total += float(loss.detach()) * len(rows)
+            seen += len(rows)
+        val = evaluate(model, data, "val", settings.eval_batch_size)
+        score = _score(val, metric)
+        row = {"epoch": epoch, "train_loss": total / max(seen, 1), "seconds": 0.0}
+        row.update({f"val_{k}": v for k, v in val.items()})
+        row["seconds"] = time.perf_counter() - t0
+        history.append(row)
+        improved = math.isfinite(score) and score > best_score + settings.min_delta
+        if improved or best_epoch == 0:
+            best_score = score if math.isfinite(score) else -math.inf
+            best_epoch, since_best = epoch, 0
+            best_state = copy.deepcopy(model.state_dict())
+        else:
+            since_best += 1
+        log.info(
+            "epoch %d/%d train_loss %.4f val_loss %.4f val_auprc %.4f val_auroc %.4f (%.1f s)%s",
+            epoch, settings.max_epochs, row["train_loss"], val["loss"], val["auprc"],
+            val["auroc"], row["seconds"], " *" if best_epoch == epoch else "",
+        )  # fmt: skip
+        if on_epoch is not None:
+            on_epoch(epoch, row)
+        if since_best >= settings.patience:
+            stopped_early = True
+            break
+    model.load_state_dict(best_state)
+    return FitResult(
+        state_dict=best_state,
+        best_epoch=best_epoch,
+        selection_metric=metric,
+        history=history,
+        stopped_early=stopped_early,
+        seconds=time.perf_counter() - start,
+    )

@@ -1,0 +1,174 @@
+"""Train one model on one dataset for one seed, choose its threshold on validation, test once.
+
+The full per-seed procedure of 3.5.4: initialise, train with early stopping, keep the best
+validation epoch, choose the decision threshold on validation only (3.5.3), then evaluate
+validation and test, pooled and per object. Writes ``metrics.json``, ``predictions.parquet`` (the
+validation and test scores, for calibration and threshold-transfer figures) and, when asked, a
+checkpoint carrying its model arguments, normalisation and config.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+import torch
+
+from graspstab.common.io import atomic_path, write_json, write_parquet
+from graspstab.common.logs import setup_logging
+from graspstab.common.provenance import code_version, stable_hash
+from graspstab.learning.data import WindowData, load_window_data
+from graspstab.learning.metrics import (
+    METRIC_KEYS,
+    ThresholdChoice,
+    binary_metrics,
+    per_object_metrics,
+    select_threshold,
+    threshold_grid,
+)
+from graspstab.learning.models import build_model, count_parameters
+from graspstab.learning.train import TrainSettings, fit, predict_logits, sigmoid
+
+log = logging.getLogger("graspstab.learning")
+
+
+def threshold_settings(train: Mapping[str, Any], model: Mapping[str, Any]) -> dict[str, Any]:
+    """The threshold rule of a run: the train group's, unless the (tuned) model spec sets
+    ``threshold_rule`` or ``min_recall`` (table 4.1 lets Optuna search them)."""
+    t = dict(train["threshold"])
+    return {
+        "grid": list(t["grid"]),
+        "rule": model.get("threshold_rule", t.get("rule", "min_recall")),
+        "min_recall": float(model.get("min_recall", t["min_recall"])),
+    }
+
+
+def evaluate_splits(
+    model: torch.nn.Module, data: WindowData, threshold: Mapping[str, Any], batch_size: int
+) -> tuple[dict[str, Any], pl.DataFrame]:
+    """Choose the threshold on validation, then score validation and test with it."""
+    scores: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    for split in ("val", "test"):
+        rows = data.rows(split)
+        scores[split] = (rows, predict_logits(model, data, rows, batch_size), data.labels(rows))
+    _, val_logits, val_labels = scores["val"]
+    if len(val_labels):
+        choice = select_threshold(
+            sigmoid(val_logits),
+            val_labels,
+            threshold_grid(*threshold["grid"]),
+            min_recall=threshold["min_recall"],
+            rule=threshold["rule"],
+        )
+    else:
+        log.warning("no validation window: the threshold is undefined (0.5 used)")
+        choice = ThresholdChoice(0.5, "undefined", math.nan, math.nan, math.nan)
+    out: dict[str, Any] = {"threshold": {**vars(choice), "min_recall": threshold["min_recall"]}}
+    frames = []
+    for split, (rows, logits, labels) in scores.items():
+        probs, objects = sigmoid(logits), data.objects(rows)
+        if len(rows) == 0:
+            log.warning("no %s window in this split assignment: its metrics are undefined", split)
+            out[split] = {k: math.nan for k in METRIC_KEYS} | {"n": 0, "n_unstable": 0}
+            out[f"{split}_objects"] = {}
+            continue
+        out[split] = binary_metrics(probs, labels, choice.threshold, logits=logits)
+        out[f"{split}_objects"] = per_object_metrics(
+            probs, labels, objects, choice.threshold, logits=logits
+        )
+        frames.append(
+            pl.DataFrame(
+                {
+                    "sample_id": data.index["sample_id"].to_numpy()[rows],
+                    "object": objects,
+                    "split": [split] * len(rows),
+                    "label": labels.astype(np.int8),
+                    "logit": logits,
+                    "prob": probs,
+                }
+            )
+        )
+    return out, pl.concat(frames)
+
+
+def train_model(
+    dataset_dir: str | Path,
+    model_spec: Mapping[str, Any],
+    train: Mapping[str, Any],
+    seed: int,
+    out_dir: str | Path,
+    *,
+    assignment: Mapping[str, str] | None = None,
+    threads: int = 1,
+    checkpoint: bool = True,
+    extra: Mapping[str, Any] | None = None,
+    log_file: str | Path | None = None,
+) -> dict[str, Any]:
+    """Run the per-seed procedure and write its artefacts into ``out_dir``; return the metrics
+    (``extra`` keys, e.g. the split assignment's number, are stored with them)."""
+    setup_logging(log_file)
+    torch.set_num_threads(max(1, int(threads)))
+    out = Path(out_dir)
+    params = {"model": dict(model_spec), "train": dict(train), "seed": int(seed),
+              "assignment": dict(assignment) if assignment else None}  # fmt: skip
+    data = load_window_data(dataset_dir, assignment)
+    counts = {s: dict(zip(("stable", "unstable"), data.class_counts(s), strict=True))
+              for s in ("train", "val", "test")}  # fmt: skip
+    log.info("dataset %s: W=%d, %s", dataset_dir, data.window_steps, counts)
+    settings = TrainSettings.from_config(train, model_spec)
+    torch.manual_seed(seed)
+    model = build_model(model_spec)
+    n_params = count_parameters(model)
+    log.info("%s: %d trainable parameters, %s", model_spec["family"], n_params, settings)
+    result = fit(model, data, settings, seed)
+    metrics, predictions = evaluate_splits(
+        model, data, threshold_settings(train, model_spec), settings.eval_batch_size
+    )
+    record = {
+        "family": model_spec["family"],
+        "seed": int(seed),
+        "parameters": n_params,
+        "window_steps": data.window_steps,
+        "dataset": str(dataset_dir),
+        "counts": counts,
+        "best_epoch": result.best_epoch,
+        "epochs_run": len(result.history),
+        "stopped_early": result.stopped_early,
+        "selection_metric": result.selection_metric,
+        "train_seconds": result.seconds,
+        "seconds_per_epoch": result.seconds / max(len(result.history), 1),
+        "history": result.history,
+        **metrics,
+        **dict(extra or {}),
+        "code_version": code_version("learning", "labels"),
+        "params": params,
+        "params_hash": stable_hash(params),
+    }
+    log.info(
+        "best epoch %d (%s); threshold %.3f (%s); val AUPRC %.4f, test AUPRC %.4f, test F1 %.4f",
+        result.best_epoch, result.selection_metric, metrics["threshold"]["threshold"],
+        metrics["threshold"]["rule"], metrics["val"]["auprc"], metrics["test"]["auprc"],
+        metrics["test"]["f1"],
+    )  # fmt: skip
+    write_parquet(out / "predictions.parquet", predictions)
+    if checkpoint:
+        with atomic_path(out / "model.pt") as tmp:
+            torch.save(
+                {
+                    "state_dict": result.state_dict,
+                    "model": dict(model_spec),
+                    "window_steps": data.window_steps,
+                    "mean": data.mean.tolist(),
+                    "std": data.std.tolist(),
+                    "threshold": metrics["threshold"]["threshold"],
+                    "params": params,
+                },
+                tmp,
+            )
+    write_json(out / "metrics.json", record)
+    return record

@@ -1,0 +1,491 @@
+"""Training, tuning, splits and aggregation (thesis 3.5, 4.1-4.5) on small synthetic datasets."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import optuna
+import polars as pl
+import pytest
+import torch
+import yaml
+from conftest import CONFIG_DIR
+
+from graspstab.labels.label_windows import normalisation
+from graspstab.learning import aggregate
+from graspstab.learning.data import DatasetError, load_window_data
+from graspstab.learning.latency import measure_latency
+from graspstab.learning.metrics import select_threshold, threshold_grid
+from graspstab.learning.models import build_model
+from graspstab.learning.splits import all_assignments, assignment_key, sample_assignments
+from graspstab.learning.train import TrainSettings, evaluate, fit, sigmoid
+from graspstab.learning.train_model import train_model
+from graspstab.learning.tune_model import tune_model
+
+W = 20  # timesteps per synthetic window
+OBJECTS = [f"o{i:02d}" for i in range(12)]
+SPLITS = {o: "train" if i < 8 else "val" if i < 10 else "test" for i, o in enumerate(OBJECTS)}
+TIMING = ("seconds", "train_seconds", "seconds_per_epoch")
+
+TRAIN: dict[str, Any] = {
+    **yaml.safe_load((CONFIG_DIR / "train" / "default.yaml").read_text()),
+    "max_epochs": 6,
+    "batch_size": 32,
+    "patience": 6,
+}
+LSTM: dict[str, Any] = {"family": "lstm", "hidden_size": 16, "num_layers": 1,
+                        "bidirectional": False, "pooling": "mean", "dropout": 0.0,
+                        "learning_rate": 1e-2}  # fmt: skip
+CNN: dict[str, Any] = {"family": "cnn", "base_channels": 8, "kernel_sizes": [5, 5, 3],
+                       "dropout": 0.0, "learning_rate": 1e-2}  # fmt: skip
+TUNE: dict[str, Any] = {
+    "trials": 2,
+    "window_s": 0.01,
+    "seed": 0,
+    "objective": "auprc",
+    "storage": None,
+    "pruner": {"startup_trials": 5, "warmup_epochs": 5},
+    "space": {
+        "common": {
+            "learning_rate": {"low": 1e-3, "high": 1e-2, "log": True},
+            "batch_size": [32, 64],
+            "threshold_rule": ["min_recall", "best_f1"],  # dropped: the objective is AUPRC
+        },
+        "recurrent": {"hidden_size": [8, 16]},
+        "cnn": {"base_channels": [4, 8]},
+    },
+}
+
+
+def write_dataset(
+    root: Path,
+    per_split: dict[str, int],
+    *,
+    planted: bool = True,
+    one_class_val: bool = False,
+    seed: int = 0,
+) -> Path:
+    """Write a dataset directory in label_windows' layout: 40 % unstable windows per object whose
+    shear rises (and normal load dips) over the last 8 steps; ``planted=False`` then permutes
+    the labels within each object so they are independent of the windows."""
+    rng = np.random.default_rng(seed)
+    ramp = np.clip((np.arange(W) - (W - 8)) / 7, 0.0, 1.0)[None, :, None]
+    rows, chunks = [], []
+    for obj in OBJECTS:
+        split = SPLITS[obj]
+        n = per_split[split]
+        y = (rng.permutation(n) < round(0.4 * n)).astype(np.int8)
+        if one_class_val and split == "val":
+            y[:] = 0
+        normal = rng.uniform(1.0, 3.0, (n, 1, 5)) * np.ones((1, W, 1))
+        x = np.stack([normal, 0.3 * normal], axis=-1) + rng.normal(0.0, 0.2, (n, W, 5, 2))
+        x[y == 1, :, :, 1] += 0.8 * ramp
+        x[y == 1, :, :, 0] -= 0.4 * ramp
+        if not planted:
+            y = rng.permutation(y)
+        chunks.append(x.astype(np.float32))
+        rows += [{"object": obj, "grasp_id": k // 5, "shard": 0, "start": k, "end": k + W,
+                  "r": float(y[k]), "label": int(y[k]), "split": split}
+                 for k in range(n)]  # fmt: skip
+    index = pl.DataFrame(
+        rows,
+        schema={"object": pl.String, "grasp_id": pl.Int64, "shard": pl.Int32, "start": pl.Int64,
+                "end": pl.Int64, "r": pl.Float64, "label": pl.Int8, "split": pl.String},
+    ).with_row_index("sample_id")  # fmt: skip
+    windows = np.concatenate(chunks)
+    root.mkdir(parents=True, exist_ok=True)
+    np.save(root / "windows.npy", windows)
+    index.write_parquet(root / "index.parquet")
+    (root / "normalisation.json").write_text(json.dumps(normalisation(windows, index)))
+    return root
+
+
+def _strip_timing(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _strip_timing(v) for k, v in value.items() if k not in TIMING}
+    if isinstance(value, list):
+        return [_strip_timing(v) for v in value]
+    return value
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equality that treats NaN as equal to NaN (JSON round trip)."""
+    return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+
+@pytest.fixture(autouse=True)
+def _one_thread() -> None:
+    torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module")
+def planted(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """360 windows: 8 train / 2 val / 2 test objects of 30 windows each."""
+    return write_dataset(tmp_path_factory.mktemp("planted"), {"train": 30, "val": 30, "test": 30})
+
+
+@pytest.fixture(scope="module")
+def one_class_val(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Like ``planted`` but every validation window is stable."""
+    root = tmp_path_factory.mktemp("one_class_val")
+    return write_dataset(root, {"train": 30, "val": 30, "test": 30}, one_class_val=True)
+
+
+@pytest.fixture(scope="module")
+def lstm_run(planted: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One LSTM run (seed 0) on the planted dataset, shared by the tests that read its files."""
+    out = tmp_path_factory.mktemp("lstm_seed0")
+    train_model(planted, LSTM, TRAIN, 0, out)
+    return out
+
+
+def _metrics(run: Path) -> dict[str, Any]:
+    return json.loads((run / "metrics.json").read_text())
+
+
+# -- training -------------------------------------------------------------------------------------
+
+
+def test_planted_signal_is_learned(planted: Path, lstm_run: Path, tmp_path: Path) -> None:
+    torch.manual_seed(0)
+    untrained = evaluate(build_model(LSTM), load_window_data(planted), "test", 1024)
+    assert untrained["auprc"] < 0.8  # the pattern has to be learned, not found by chance
+    lstm = _metrics(lstm_run)
+    cnn = train_model(planted, CNN, TRAIN, 0, tmp_path / "cnn")
+    for record in (lstm, cnn):
+        assert record["test"]["auprc"] > 0.95, record["family"]
+        assert record["counts"]["test"] == {"stable": 36, "unstable": 24}
+    assert {p.name for p in (tmp_path / "cnn").iterdir()} >= {
+        "metrics.json", "predictions.parquet", "model.pt"}  # fmt: skip
+
+
+def test_shuffled_labels_give_chance_auroc(tmp_path: Path) -> None:
+    data = write_dataset(tmp_path / "ds", {"train": 30, "val": 30, "test": 150}, planted=False)
+    record = train_model(data, LSTM, TRAIN, 0, tmp_path / "run", checkpoint=False)
+    n1 = record["test"]["n_unstable"]
+    n0 = record["test"]["n"] - n1
+    # Under independence the test AUROC is the Mann-Whitney U / (n0 n1) null distribution:
+    # mean 0.5, sd sqrt((n0 + n1 + 1) / (12 n0 n1)) = 0.034 for 180 stable + 120 unstable.
+    # Tolerance 4 sd = 0.137 (< 0.15), a false alarm rate below 1e-4.
+    tolerance = 4.0 * math.sqrt((n0 + n1 + 1) / (12.0 * n0 * n1))
+    assert (n0, n1) == (180, 120) and tolerance < 0.15
+    assert abs(record["test"]["auroc"] - 0.5) < tolerance
+
+
+def test_same_seed_same_metrics_other_seed_other_weights(
+    planted: Path, lstm_run: Path, tmp_path: Path
+) -> None:
+    again = train_model(planted, LSTM, TRAIN, 0, tmp_path / "again")
+    first = _metrics(lstm_run)
+    assert _same(_strip_timing(first), _strip_timing(_metrics(tmp_path / "again")))
+    assert "seconds" in again["history"][0] and again["history"] != first["history"]  # timings
+    train_model(planted, LSTM, TRAIN, 1, tmp_path / "seed1")
+    w0 = torch.load(lstm_run / "model.pt", weights_only=False)["state_dict"]
+    w1 = torch.load(tmp_path / "seed1" / "model.pt", weights_only=False)["state_dict"]
+    assert w0.keys() == w1.keys()
+    assert any(not torch.equal(w0[k], w1[k]) for k in w0)
+
+
+def test_threshold_from_validation_only(planted: Path, lstm_run: Path, tmp_path: Path) -> None:
+    record = _metrics(lstm_run)
+    pred = pl.read_parquet(lstm_run / "predictions.parquet")
+    assert set(pred["split"].unique()) == {"val", "test"}
+    data = load_window_data(planted)
+    for split in ("val", "test"):
+        ids = pred.filter(pl.col("split") == split)["sample_id"].to_numpy()
+        np.testing.assert_array_equal(ids, data.index["sample_id"].to_numpy()[data.rows(split)])
+    np.testing.assert_allclose(pred["prob"].to_numpy(), sigmoid(pred["logit"].to_numpy()))
+    val = pred.filter(pl.col("split") == "val")
+    t = TRAIN["threshold"]
+    choice = select_threshold(val["prob"].to_numpy(), val["label"].to_numpy(),
+                              threshold_grid(*t["grid"]), t["min_recall"], t["rule"])  # fmt: skip
+    assert record["threshold"]["threshold"] == choice.threshold
+    assert record["threshold"]["rule"] == choice.rule
+    assert record["test"]["threshold"] == choice.threshold
+
+    # Flip every test label in a copy: the threshold and validation results cannot move.
+    flipped = tmp_path / "flipped"
+    shutil.copytree(planted, flipped)
+    index = pl.read_parquet(flipped / "index.parquet")
+    index = index.with_columns(
+        pl.when(pl.col("split") == "test").then(1 - pl.col("label")).otherwise(pl.col("label"))
+        .cast(pl.Int8).alias("label")
+    )  # fmt: skip
+    index.write_parquet(flipped / "index.parquet")
+    other = train_model(flipped, LSTM, TRAIN, 0, tmp_path / "run", checkpoint=False)
+    assert other["threshold"] == record["threshold"]
+    assert _same(other["val"], record["val"])
+    assert other["test"]["n_unstable"] == record["test"]["n"] - record["test"]["n_unstable"]
+
+
+def test_one_class_validation_falls_back_to_loss(one_class_val: Path, tmp_path: Path) -> None:
+    data = load_window_data(one_class_val)
+    assert data.class_counts("val") == (60, 0)
+    torch.manual_seed(0)
+    settings = TrainSettings.from_config({**TRAIN, "max_epochs": 2}, LSTM)
+    result = fit(build_model(LSTM), data, settings, seed=0)
+    assert result.selection_metric == "loss"
+    assert all(math.isnan(h["val_auprc"]) for h in result.history)
+    record = train_model(one_class_val, LSTM, TRAIN, 0, tmp_path, checkpoint=False)
+    assert record["selection_metric"] == "loss"
+    assert record["threshold"]["rule"] == "undefined"
+    assert record["threshold"]["threshold"] == 0.5
+    assert math.isnan(record["val"]["auprc"])
+    assert math.isfinite(record["test"]["auprc"]) and math.isfinite(record["test"]["loss"])
+    assert record["test"]["tp"] + record["test"]["fn"] == 24
+
+
+def test_early_stopping_keeps_first_epoch(planted: Path) -> None:
+    data = load_window_data(planted)
+    settings = TrainSettings.from_config(
+        {**TRAIN, "max_epochs": 5, "patience": 1, "min_delta": 10.0}, LSTM
+    )
+    torch.manual_seed(0)
+    model = build_model(LSTM)
+    seen: dict[int, dict[str, torch.Tensor]] = {}
+    result = fit(
+        model,
+        data,
+        settings,
+        seed=0,
+        on_epoch=lambda e, _: seen.__setitem__(e, copy.deepcopy(model.state_dict())),
+    )
+    assert len(result.history) == 2 and result.stopped_early
+    assert result.best_epoch == 1
+    assert any(not torch.equal(seen[1][k], seen[2][k]) for k in seen[1])
+    for k, v in model.state_dict().items():
+        assert torch.equal(v, seen[1][k]) and torch.equal(result.state_dict[k], seen[1][k])
+
+
+# -- data -----------------------------------------------------------------------------------------
+
+
+def test_assignment_recomputes_train_statistics(planted: Path) -> None:
+    objects = OBJECTS[:10]  # o10 and o11 are left out and must be dropped
+    assignment = {o: "train" for o in objects[2:9]} | {"o00": "val", "o01": "val", "o09": "test"}
+    data = load_window_data(planted, assignment)
+    assert sorted(data.index["object"].unique()) == objects
+    assert len(data.windows) == len(data.index) == 300
+    assert sorted(set(data.objects(data.rows("test")))) == ["o09"]
+
+    raw = np.load(planted / "windows.npy")
+    index = pl.read_parquet(planted / "index.parquet")
+    train_objects = {o for o, s in assignment.items() if s == "train"}
+    for f in range(5):
+        for c in range(2):
+            values = np.concatenate([raw[i, :, f, c] for i, o in enumerate(index["object"])
+                                     if o in train_objects]).astype(np.float64)  # fmt: skip
+            mean = values.sum() / values.size
+            std = math.sqrt(((values - mean) ** 2).sum() / values.size)
+            assert data.mean[f, c] == pytest.approx(mean, rel=1e-9, abs=1e-12)
+            assert data.std[f, c] == pytest.approx(std, rel=1e-9)
+    assert not np.allclose(data.mean, load_window_data(planted).mean)
+
+    rows = np.array([5, 299, 0, 150, 17])
+    ids = data.index["sample_id"].to_numpy()[rows]
+    expected = (raw[ids].astype(np.float64) - data.mean) / data.std
+    np.testing.assert_allclose(data.batch(rows).numpy(), expected, rtol=1e-5, atol=1e-5)
+    assert isinstance(data.windows.base, np.memmap)  # the row view still reads lazily
+
+    with pytest.raises(DatasetError, match="unknown split"):
+        load_window_data(planted, {**assignment, "o10": "training"})
+    unknown = load_window_data(planted, {**assignment, "no_such_object": "train"})
+    assert len(unknown.index) == 300
+
+
+def test_windows_memory_mapped_and_batches_normalised(planted: Path) -> None:
+    data = load_window_data(planted)
+    assert isinstance(data.windows, np.memmap)
+    assert data.window_steps == W
+    stored = json.loads((planted / "normalisation.json").read_text())
+    np.testing.assert_array_equal(data.mean, np.asarray(stored["mean"]))
+    raw = np.load(planted / "windows.npy")
+    rows = np.array([300, 3, 200, 3, 42])  # unsorted, with a repeat
+    expected = (raw[rows].astype(np.float64) - data.mean) / data.std
+    batch = data.batch(rows)
+    assert batch.dtype == torch.float32 and tuple(batch.shape) == (5, W, 5, 2)
+    np.testing.assert_allclose(batch.numpy(), expected, rtol=1e-5, atol=1e-5)
+
+
+# -- tuning ---------------------------------------------------------------------------------------
+
+
+def _tune(dataset: Path, root: Path, **overrides: Any) -> dict[str, Any]:
+    return tune_model(
+        dataset, LSTM, {**TRAIN, "max_epochs": 2}, {**TUNE, **overrides}, root / "best.json",
+        root / "trials.parquet", default_storage=root / "study.sqlite",
+    )  # fmt: skip
+
+
+def _study(root: Path, name: str) -> optuna.Study:
+    return optuna.load_study(study_name=name, storage=f"sqlite:///{root / 'study.sqlite'}")
+
+
+@pytest.fixture(scope="module")
+def tuned(planted: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A finished two-trial study of the LSTM on the planted dataset."""
+    root = tmp_path_factory.mktemp("tune")
+    _tune(planted, root)
+    return root
+
+
+def _copy_study(src: Path, dst: Path) -> Path:
+    dst.mkdir(parents=True, exist_ok=True)
+    shutil.copy(src / "study.sqlite", dst / "study.sqlite")
+    return dst
+
+
+def test_tune_writes_best_spec_and_trials(tuned: Path) -> None:
+    best = json.loads((tuned / "best.json").read_text())
+    assert best["searched"] == ["batch_size", "hidden_size", "learning_rate"]
+    assert best["trials"]["complete"] == 2
+    study = _study(tuned, best["study_name"])
+    assert best["best_trial"] == study.best_trial.number
+    assert best["spec"] == {**LSTM, **study.best_trial.params}
+    trials = pl.read_parquet(tuned / "trials.parquet")
+    assert trials["state"].to_list() == ["complete", "complete"]
+    assert trials["epochs_run"].to_list() == [2, 2]
+
+
+def test_tune_marks_interrupted_trial_failed(planted: Path, tuned: Path, tmp_path: Path) -> None:
+    root = _copy_study(tuned, tmp_path)
+    name = json.loads((tuned / "best.json").read_text())["study_name"]
+    assert optuna.get_all_study_names(f"sqlite:///{root / 'study.sqlite'}") == [name]
+    _study(root, name).ask()  # a trial a killed job left RUNNING
+    record = _tune(planted, root)
+    assert record["study_name"] == name
+    assert record["trials"]["fail"] == 1 and record["trials"]["running"] == 0
+    assert record["trials"]["complete"] == 2  # the failed trial is not counted: none re-run
+    assert len(_study(root, name).trials) == 3
+
+
+def test_tune_resumes_with_more_trials(planted: Path, tuned: Path, tmp_path: Path) -> None:
+    root = _copy_study(tuned, tmp_path)
+    name = json.loads((tuned / "best.json").read_text())["study_name"]
+    record = _tune(planted, root, trials=3)
+    assert record["study_name"] == name
+    states = [t.state for t in _study(root, name).trials]
+    assert states == [optuna.trial.TrialState.COMPLETE] * 3  # the second run added only one
+
+
+def test_tune_objective_falls_back_to_loss(one_class_val: Path, tmp_path: Path) -> None:
+    record = _tune(one_class_val, tmp_path, trials=1)
+    assert record["objective"] == "loss"
+    assert math.isfinite(record["best_value"]) and record["best_value"] < 0  # -val loss
+    assert record["trials"]["complete"] == 1
+
+
+# -- split assignments ----------------------------------------------------------------------------
+
+
+def test_sample_assignments_of_reference_split() -> None:
+    items = yaml.safe_load((CONFIG_DIR / "objects" / "ycb12.yaml").read_text())["items"]
+    fixed = {obj: item["split"] for obj, item in items.items()}
+    assert sorted(fixed.values()).count("train") == 8
+    picks = sample_assignments(fixed, 30, seed=0)
+    assert len(picks) == 30 and picks[0] == fixed
+    keys = {
+        assignment_key(*([o for o, s in a.items() if s == r] for r in ("val", "test")))
+        for a in picks
+    }
+    assert len(keys) == 30
+    for a in picks:
+        assert set(a) == set(fixed)
+        assert sorted(a.values()) == ["test"] * 2 + ["train"] * 8 + ["val"] * 2
+    assert sample_assignments(fixed, 30, seed=0) == picks
+    other = sample_assignments(fixed, 30, seed=1)
+    assert other[0] == fixed and other != picks
+    assert len(all_assignments(list(fixed))) == 2970
+
+
+# -- aggregation and latency ----------------------------------------------------------------------
+
+
+def test_mean_std_ignores_nan() -> None:
+    values = [0.8, 0.9, float("nan"), 0.7]
+    frame = pl.DataFrame({"family": ["lstm"] * 4 + ["cnn"] * 2, "seed": [1, 2, 3, 4, 1, 2],
+                          "auprc": values + [0.5, 0.6]})  # fmt: skip
+    out = aggregate.mean_std(frame, ["family"], ["auprc"]).row(1, named=True)
+    assert out["family"] == "lstm" and out["seeds"] == 4 and out["auprc_n"] == 3
+    assert out["auprc_mean"] == pytest.approx(np.nanmean(values))
+    assert out["auprc_std"] == pytest.approx(np.std([0.8, 0.9, 0.7], ddof=1))
+
+
+def test_run_rows_from_metrics_json(lstm_run: Path) -> None:
+    record = _metrics(lstm_run)
+    rows = aggregate.run_rows([record], [{"window_s": 0.01}])
+    assert rows["split"].to_list() == ["val", "test"]
+    test = rows.row(1, named=True)
+    assert test["auprc"] == record["test"]["auprc"] and test["window_s"] == 0.01
+    assert test["threshold"] == record["threshold"]["threshold"]
+
+
+def test_latency_aware_choice_prefers_faster_within_one_std() -> None:
+    table = pl.DataFrame({
+        "family": ["gru", "lstm", "cnn", "cnn"],
+        "window_s": [0.2, 0.05, 0.01, 0.005],
+        "val_auprc_mean": [0.90, 0.87, 0.80, float("nan")],
+        "val_auprc_std": [0.05, 0.02, 0.01, float("nan")],
+        "total_latency_ms": [300.0, 60.0, 20.0, 6.0],
+    })  # fmt: skip
+    choice = aggregate.latency_aware_choice(table)
+    assert choice["defined"] and choice["cutoff"] == pytest.approx(0.85)
+    assert choice["best"]["family"] == "gru"
+    assert (choice["pick"]["family"], choice["pick"]["window_s"]) == ("lstm", 0.05)
+    # Without a std across seeds only the best itself qualifies.
+    single = aggregate.latency_aware_choice(table.with_columns(pl.lit(None).alias("val_auprc_std")))
+    assert single["pick"]["family"] == "gru"
+    assert not aggregate.latency_aware_choice(table.tail(1))["defined"]
+
+
+def test_split_summary_statistics() -> None:
+    per = {0: [0.80, 0.84], 1: [0.60, 0.70], 2: [0.90, 0.92], 3: [0.50, float("nan")]}
+    frame = pl.DataFrame({
+        "assignment": [a for a in per for _ in range(2)],
+        "val_objects": [f"v{a}" for a in per for _ in range(2)],
+        "test_objects": [f"t{a}" for a in per for _ in range(2)],
+        "seed": [42, 43] * 4,
+        "auprc": [v for vs in per.values() for v in vs],
+    })  # fmt: skip
+    summary = aggregate.split_summary(frame, hardest=2)
+    means = np.array([0.82, 0.65, 0.91, 0.50])
+    assert summary["assignments"] == 4 and summary["defined"] == 4
+    assert summary["mean"] == pytest.approx(means.mean())
+    assert summary["std"] == pytest.approx(means.std(ddof=1))
+    assert summary["median"] == pytest.approx(np.median(means))
+    assert summary["min"] == pytest.approx(0.50)
+    assert summary["fixed_split"] == pytest.approx(0.82)
+    assert [h["assignment"] for h in summary["hardest"]] == [3, 1]
+    assert summary["per_assignment"][3]["seeds"] == 2
+
+
+def test_error_table_rates() -> None:
+    frame = pl.DataFrame({
+        "family": ["lstm", "lstm", "cnn", "cnn", "lstm"],
+        "split": ["test", "test", "test", "test", "val"],
+        "seed": [42, 43, 42, 43, 42],
+        "fp": [10, 20, 4, 6, 99],
+        "fn": [3, 5, 8, 8, 99],
+        "n": [200, 200, 200, 200, 50],
+        "n_unstable": [40, 40, 40, 40, 10],
+    })  # fmt: skip
+    table = aggregate.error_table(frame)
+    assert table["family"].to_list() == ["cnn", "lstm"]
+    lstm = table.row(1, named=True)
+    assert (lstm["fp_mean"], lstm["fn_mean"]) == (15.0, 4.0)
+    assert lstm["fp_std"] == pytest.approx(np.std([10, 20], ddof=1))
+    assert (lstm["stable"], lstm["unstable"]) == (160, 40)
+    assert lstm["false_positive_rate"] == pytest.approx(15 / 160)
+    assert lstm["miss_rate"] == pytest.approx(4 / 40)
+
+
+def test_measure_latency() -> None:
+    m = measure_latency(build_model(LSTM), W, repeats=20, warmup=2)
+    assert m["median_ms"] > 0 and m["repeats"] == 20 and m["threads"] == 1
+    assert m["throughput_per_s"] == pytest.approx(1000.0 / m["median_ms"])

@@ -1,0 +1,349 @@
+# Learning and evaluation (thesis 3.4-3.5, 4.3-4.7): the fixed-task benchmark, Optuna tuning, the
+# window-length sweep, split robustness, latency and the friction-ratio proxy. One training job is
+# one model x dataset x seed; aggregation jobs turn their metrics.json files into study tables.
+
+from graspstab.learning.splits import sample_assignments
+
+MODELS = ["cnn", "gru", "lstm"]
+RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet"}
+
+
+wildcard_constraints:
+    model="|".join(MODELS),
+    seed=r"[0-9]+",
+    ms=r"[0-9]+",
+    k=r"[0-9]+",
+
+
+def ms_of(window_s):
+    """A window length in whole milliseconds (the dataset wildcard)."""
+    return round(1000 * window_s)
+
+
+def sweep_dataset(ms):
+    """The same-end dataset of one sweep window."""
+    return f"results/datasets/sweep/w{ms}ms/index.parquet"
+
+
+def tuned_best(model):
+    """The tuned spec of a family when the studies use tuned configurations, else nothing."""
+    if config["sweep"]["configuration"] == "tuned":
+        return {"best": f"results/tune/{model}/best.json"}
+    return {}
+
+
+def reference_spec(model):
+    """The study spec of a family when the studies do not use tuning (3.4.3)."""
+    if config["sweep"]["configuration"] == "tuned":
+        return None
+    return config["sweep"]["models"][model]
+
+
+ASSIGNMENTS = sample_assignments(
+    object_splits(), config["splits"]["count"], config["splits"]["sample_seed"]
+)
+
+
+def run_outputs(root, checkpoint=True):
+    files = dict(RUN_FILES, **({"checkpoint": "model.pt"} if checkpoint else {}))
+    return {k: f"{root}/{v}" for k, v in files.items()}
+
+
+rule train_model:
+    input:
+        index=rules.label_windows.output.index,
+        windows=rules.label_windows.output.windows,
+    output:
+        **run_outputs("results/train/baseline/{model}/seed{seed}"),
+    params:
+        spec=lambda wc: config["model"][wc.model],
+        train=config["train"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=120,
+    log:
+        "results/logs/train_model/{model}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/train_model/{model}_seed{seed}.tsv"
+    script:
+        "../scripts/train_model.py"
+
+
+rule tune_model:
+    input:
+        index=sweep_dataset(ms_of(config["tune"]["window_s"])),
+    output:
+        best="results/tune/{model}/best.json",
+        trials="results/tune/{model}/trials.parquet",
+    params:
+        base=lambda wc: config["model"][wc.model],
+        train=config["train"],
+        tune=config["tune"],
+        default_storage=lambda wc: f"results/tune/{wc.model}/study.sqlite",
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=600,
+    log:
+        "results/logs/tune_model/{model}.log",
+    benchmark:
+        "results/benchmarks/tune_model/{model}.tsv"
+    script:
+        "../scripts/tune_model.py"
+
+
+rule train_sweep_model:
+    input:
+        unpack(lambda wc: tuned_best(wc.model)),
+        index=lambda wc: sweep_dataset(wc.ms),
+    output:
+        **run_outputs("results/train/sweep/{model}/w{ms}ms/seed{seed}"),
+    params:
+        spec=lambda wc: reference_spec(wc.model),
+        pooling=config["sweep"]["recurrent_pooling"],
+        train=config["train"],
+        extra=lambda wc: {"window_s": int(wc.ms) / 1000},
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=120,
+    log:
+        "results/logs/train_sweep_model/{model}_w{ms}ms_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/train_sweep_model/{model}_w{ms}ms_seed{seed}.tsv"
+    script:
+        "../scripts/train_model.py"
+
+
+rule train_split_model:
+    input:
+        unpack(lambda wc: tuned_best(wc.model)),
+        index=sweep_dataset(ms_of(config["splits"]["window_s"])),
+    output:
+        **run_outputs("results/train/splits/{model}/a{k}/seed{seed}", checkpoint=False),
+    params:
+        spec=lambda wc: reference_spec(wc.model),
+        pooling=config["sweep"]["recurrent_pooling"],
+        train=config["train"],
+        assignment=lambda wc: ASSIGNMENTS[int(wc.k)],
+        extra=lambda wc: {"assignment_index": int(wc.k)},
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=120,
+    log:
+        "results/logs/train_split_model/{model}_a{k}_seed{seed}.log",
+    benchmark:
+        "results/benchmarks/train_split_model/{model}_a{k}_seed{seed}.tsv"
+    script:
+        "../scripts/train_model.py"
+
+
+def baseline_runs(name, seeds=None):
+    return expand(
+        "results/train/baseline/{model}/seed{seed}/{name}",
+        model=MODELS,
+        seed=seeds or config["train"]["seeds"],
+        name=name,
+    )
+
+
+def sweep_runs(name, seeds=None):
+    return expand(
+        "results/train/sweep/{model}/w{ms}ms/seed{seed}/{name}",
+        model=MODELS,
+        ms=sweep_ms(),
+        seed=seeds or config["sweep"]["seeds"],
+        name=name,
+    )
+
+
+def split_runs():
+    return expand(
+        "results/train/splits/{model}/a{k}/seed{seed}/metrics.json",
+        model=config["splits"]["family"],
+        k=range(len(ASSIGNMENTS)),
+        seed=config["splits"]["seeds"],
+    )
+
+
+rule aggregate_baseline:
+    input:
+        metrics=baseline_runs("metrics.json"),
+    output:
+        runs="results/studies/baseline/runs.parquet",
+        summary="results/studies/baseline/summary.parquet",
+        objects="results/studies/baseline/objects.parquet",
+        errors="results/studies/baseline/errors.parquet",
+        overview="results/studies/baseline/summary.json",
+    params:
+        step="baseline",
+        out_dir="results/studies/baseline",
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/aggregate_baseline/baseline.log",
+    script:
+        "../scripts/studies.py"
+
+
+# Latency of the first seed's checkpoint of every baseline model and sweep configuration.
+LATENCY_KEYS = [{"study": "baseline", "family": m, "window_s": config["labels"]["window_s"]} for m in MODELS] + [
+    {"study": "sweep", "family": m, "window_s": ms / 1000} for m in MODELS for ms in sweep_ms()
+]
+
+
+rule measure_latency:
+    input:
+        checkpoints=baseline_runs("model.pt", config["train"]["seeds"][:1])
+        + sweep_runs("model.pt", config["sweep"]["seeds"][:1]),
+    output:
+        "results/studies/latency.parquet",
+    params:
+        step="latency",
+        run_keys=LATENCY_KEYS,
+        latency=config["latency"],
+    conda:
+        CONDA_ENV
+    threads: config["latency"]["threads"]
+    resources:
+        mem_mb=1000,
+        runtime=30,
+    log:
+        "results/logs/measure_latency/latency.log",
+    script:
+        "../scripts/studies.py"
+
+
+rule aggregate_sweep:
+    input:
+        metrics=sweep_runs("metrics.json"),
+        latency=rules.measure_latency.output[0],
+    output:
+        runs="results/studies/sweep/runs.parquet",
+        summary="results/studies/sweep/summary.parquet",
+        points="results/studies/sweep/operating_points.parquet",
+        overview="results/studies/sweep/summary.json",
+    params:
+        step="sweep",
+        out_dir="results/studies/sweep",
+        run_keys=[
+            {"window_s": ms / 1000}
+            for m in MODELS
+            for ms in sweep_ms()
+            for s in config["sweep"]["seeds"]
+        ],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/aggregate_sweep/sweep.log",
+    script:
+        "../scripts/studies.py"
+
+
+rule aggregate_splits:
+    input:
+        metrics=split_runs(),
+    output:
+        runs="results/studies/splits/runs.parquet",
+        overview="results/studies/splits/summary.json",
+    params:
+        step="splits",
+        out_dir="results/studies/splits",
+        assignments=ASSIGNMENTS,
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/aggregate_splits/splits.log",
+    script:
+        "../scripts/studies.py"
+
+
+rule evaluate_proxy:
+    input:
+        index=rules.label_windows.output.index,
+        windows=rules.label_windows.output.windows,
+    output:
+        "results/studies/proxy.json",
+    params:
+        step="proxy",
+        dataset="results/datasets/baseline",
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/evaluate_proxy/proxy.log",
+    script:
+        "../scripts/studies.py"
+
+
+rule studies:
+    input:
+        rules.aggregate_baseline.output,
+        rules.aggregate_sweep.output,
+        rules.aggregate_splits.output,
+        rules.evaluate_proxy.output,
+        expand("results/tune/{model}/best.json", model=MODELS),
+
+
+LEARNING_FIGURES = [
+    "benchmark",
+    "confusion",
+    "objects",
+    "splits",
+    "sweep",
+    "latency",
+    "operating_points",
+    "threshold_transfer",
+    "reliability",
+    "proxy",
+    "tuning",
+]
+
+
+rule plot_learning:
+    input:
+        rules.studies.input,
+        baseline_runs("predictions.parquet", config["train"]["seeds"][:1]),
+        expand("results/tune/{model}/trials.parquet", model=MODELS),
+    output:
+        [f"results/figures/learning/{name}.png" for name in LEARNING_FIGURES],
+    params:
+        dpi=config["report"]["figure_dpi"],
+        first_seed=config["train"]["seeds"][0],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/plot_learning/learning.log",
+    benchmark:
+        "results/benchmarks/plot_learning/learning.tsv"
+    script:
+        "../scripts/plot_learning.py"

@@ -1,0 +1,23 @@
+"""Snakemake wrapper: train and evaluate one model x dataset x seed (graspstab.learning)."""
+
+from pathlib import Path
+
+from graspstab.learning.specs import study_spec
+from graspstab.learning.train_model import train_model
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+p = dict(sm.params)
+best = sm.input.get("best")
+spec = study_spec(p["spec"], best[0] if isinstance(best, list) and best else best, p.get("pooling"))
+train_model(
+    Path(sm.input.index).parent,
+    spec,
+    dict(p["train"]),
+    int(sm.wildcards.seed),
+    Path(sm.output.metrics).parent,
+    assignment=p.get("assignment"),
+    threads=sm.threads,
+    checkpoint="checkpoint" in sm.output.keys(),
+    extra=p.get("extra"),
+    log_file=sm.log[0],
+)
