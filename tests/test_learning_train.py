@@ -489,3 +489,19 @@ def test_measure_latency() -> None:
     m = measure_latency(build_model(LSTM), W, repeats=20, warmup=2)
     assert m["median_ms"] > 0 and m["repeats"] == 20 and m["threads"] == 1
     assert m["throughput_per_s"] == pytest.approx(1000.0 / m["median_ms"])
+
+
+def test_tune_shared_storage_keeps_running_trials(planted: Path, tmp_path: Path) -> None:
+    """A configured database may serve several workers: another worker's RUNNING trial is left
+    alone (heartbeats find the dead ones), and the study stops at ``trials`` finished trials."""
+    url = f"sqlite:///{tmp_path / 'shared.sqlite'}"
+    record = _tune(planted, tmp_path, storage=url, trials=1)
+    name = record["study_name"]
+    other = optuna.load_study(study_name=name, storage=url).ask()  # a live worker's trial
+    record = _tune(planted, tmp_path, storage=url, trials=2)
+    assert record["study_name"] == name
+    assert record["trials"]["running"] == 1 and record["trials"]["fail"] == 0
+    assert record["trials"]["complete"] + record["trials"]["pruned"] == 2
+    assert optuna.load_study(study_name=name, storage=url).trials[other.number].state.name == (
+        "RUNNING"
+    )

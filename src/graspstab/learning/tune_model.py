@@ -119,15 +119,22 @@ def tune_model(
         n_startup_trials=int(tune["pruner"]["startup_trials"]),
         n_warmup_steps=int(tune["pruner"]["warmup_epochs"]),
     )
+    shared = bool(tune.get("storage"))
+    # A configured database may be shared by several workers: their interrupted trials are found
+    # by heartbeat. The default SQLite file belongs to this job alone, so any RUNNING trial in it
+    # was interrupted by a kill and is failed at once.
+    storage: str | optuna.storages.RDBStorage = (
+        optuna.storages.RDBStorage(url, heartbeat_interval=60, grace_period=180) if shared else url
+    )
     study = optuna.create_study(
-        study_name=study_name, storage=url, sampler=sampler, pruner=pruner,
+        study_name=study_name, storage=storage, sampler=sampler, pruner=pruner,
         direction="maximize", load_if_exists=True,
     )  # fmt: skip
     done_states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED)
-    for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-        # Only this job works on this study: a RUNNING trial was interrupted by a kill.
-        study._storage.set_trial_state_values(t._trial_id, optuna.trial.TrialState.FAIL)
-        log.info("trial %d was interrupted in an earlier run: marked failed", t.number)
+    if not shared:
+        for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+            study._storage.set_trial_state_values(t._trial_id, optuna.trial.TrialState.FAIL)
+            log.info("trial %d was interrupted in an earlier run: marked failed", t.number)
     finished = len(study.get_trials(deepcopy=False, states=done_states))
     remaining = max(0, int(tune["trials"]) - finished)
     log.info("study %s at %s: %d finished trials, running %d more", study_name,
@@ -155,7 +162,9 @@ def tune_model(
         return value if math.isfinite(value) else -math.inf
 
     if remaining:
-        study.optimize(run_trial, n_trials=remaining, gc_after_trial=True)
+        # Workers sharing a study stop together once it holds ``trials`` finished trials.
+        stop = optuna.study.MaxTrialsCallback(int(tune["trials"]), states=done_states)
+        study.optimize(run_trial, n_trials=remaining, gc_after_trial=True, callbacks=[stop])
     complete = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
     if not complete:
         raise RuntimeError(f"{family}: no tuning trial completed in study {study_name}")
