@@ -84,7 +84,7 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
 
     from graspstab.learning.data import load_window_data
     from graspstab.learning.models import build_model, count_parameters
-    from graspstab.learning.train import TrainSettings
+    from graspstab.learning.train import TrainSettings, train_epoch
 
     torch.set_num_threads(int(job["threads"]))
     device = torch.device(job["device"])
@@ -106,23 +106,11 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
             torch.cuda.synchronize(device)
 
     def epoch() -> float:
-        """One training epoch as ``fit`` runs it (without the validation pass)."""
-        model.train()
+        """One training epoch exactly as ``fit`` runs it (without the validation pass)."""
         sync()
         t0 = time.perf_counter()
-        order = rng.permutation(len(rows))
-        for i in range(0, len(order), settings.batch_size):
-            batch = rows[order[i : i + settings.batch_size]]
-            if len(batch) < 2 and i:
-                continue
-            x = data.batch(batch).to(device, non_blocking=True)
-            y = torch.from_numpy(data.labels(batch)).to(device, non_blocking=True)
-            optimiser.zero_grad(set_to_none=True)
-            loss = loss_fn(model(x), y)
-            loss.backward()
-            if settings.grad_clip > 0:
-                nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
-            optimiser.step()
+        train_epoch(model, data, rows[rng.permutation(len(rows))], settings, optimiser, loss_fn,
+                    device)  # fmt: skip
         sync()
         return time.perf_counter() - t0
 

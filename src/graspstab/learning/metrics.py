@@ -89,21 +89,28 @@ class ThresholdChoice:
     f1: float
 
 
-def _check_binary(probs: Any, labels: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Validated float64 probabilities in [0, 1] and int8 labels in {0, 1}, 1-D and equal length."""
-    p = np.asarray(probs, dtype=np.float64).reshape(-1)
+def check_scored(scores: Any, labels: Any, name: str = "scores") -> tuple[np.ndarray, np.ndarray]:
+    """Validated finite float64 scores and int8 labels in {0, 1}, 1-D, equal length, non-empty
+    (shared by the models' probabilities and the friction-ratio proxy's scores)."""
+    s = np.asarray(scores, dtype=np.float64).reshape(-1)
     y_raw = np.asarray(labels).reshape(-1)
-    if p.shape != y_raw.shape:
-        raise ValueError(f"probs and labels differ in length: {p.shape[0]} vs {y_raw.shape[0]}")
-    if p.size == 0:
-        raise ValueError("empty probs/labels")
-    if not np.all(np.isfinite(p)):
-        raise ValueError("probs contain NaN or infinite values")
-    if np.any((p < 0.0) | (p > 1.0)):
-        raise ValueError("probs must lie in [0, 1]")
+    if s.shape != y_raw.shape:
+        raise ValueError(f"{name} and labels differ in length: {s.shape[0]} vs {y_raw.shape[0]}")
+    if s.size == 0:
+        raise ValueError(f"empty {name}/labels")
+    if not np.all(np.isfinite(s)):
+        raise ValueError(f"{name} contain NaN or infinite values")
     if not np.all((y_raw == 0) | (y_raw == 1)):
         raise ValueError("labels must be 0 (stable) or 1 (unstable)")
-    return p, y_raw.astype(np.int8)
+    return s, y_raw.astype(np.int8)
+
+
+def _check_binary(probs: Any, labels: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Validated float64 probabilities in [0, 1] and int8 labels in {0, 1}, 1-D and equal length."""
+    p, y = check_scored(probs, labels, "probs")
+    if np.any((p < 0.0) | (p > 1.0)):
+        raise ValueError("probs must lie in [0, 1]")
+    return p, y
 
 
 def _grid_counts(

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 from sklearn.metrics import average_precision_score, roc_auc_score
 
+from graspstab.learning.metrics import check_scored
+
 #: Channel layout of the raw windows (N, W, fingertips, 2), as written by the labelling stage.
 NORMAL_CHANNEL = 0
 SHEAR_CHANNEL = 1
@@ -47,17 +49,7 @@ def proxy_metrics(scores: Any, labels: Any) -> dict[str, float]:
     average_precision_score, AUROC roc_auc_score; both are NaN when only one class is present.
     Non-finite scores or non-binary labels raise ``ValueError``.
     """
-    s = np.asarray(scores, dtype=np.float64).reshape(-1)
-    y = np.asarray(labels).reshape(-1)
-    if s.shape != y.shape:
-        raise ValueError(f"scores and labels differ in length: {s.shape[0]} vs {y.shape[0]}")
-    if s.size == 0:
-        raise ValueError("empty scores/labels")
-    if not np.all(np.isfinite(s)):
-        raise ValueError("scores contain NaN or infinite values")
-    if not np.all((y == 0) | (y == 1)):
-        raise ValueError("labels must be 0 (stable) or 1 (unstable)")
-    y = y.astype(np.int8)
+    s, y = check_scored(scores, labels)
     if not 0 < int(y.sum()) < y.size:
         return {"auprc": float("nan"), "auroc": float("nan")}
     return {

@@ -168,8 +168,8 @@ def evaluate_proxy(
         rows = data.rows(split)
         scores = friction_ratio(data.windows[rows]) if len(rows) else np.zeros(0)
         labels = data.labels(rows)
-        result[split] = {**proxy_metrics(scores, labels), "n": int(len(rows)),
-                         "n_unstable": int(labels.sum())}  # fmt: skip
+        ranking = proxy_metrics(scores, labels) if len(rows) else {"auprc": np.nan, "auroc": np.nan}
+        result[split] = {**ranking, "n": int(len(rows)), "n_unstable": int(labels.sum())}
         result[f"{split}_objects"] = {
             obj: proxy_metrics(scores[mask], labels[mask])
             for obj in sorted(set(data.objects(rows)))

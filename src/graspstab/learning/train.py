@@ -111,6 +111,36 @@ def _score(metrics: Mapping[str, float], name: str) -> float:
     return -metrics["loss"] if name == "loss" else metrics[name]
 
 
+def train_epoch(
+    model: nn.Module,
+    data: WindowData,
+    rows: np.ndarray,
+    settings: TrainSettings,
+    optimiser: torch.optim.Optimizer,
+    loss_fn: nn.Module,
+    device: torch.device | str = "cpu",
+) -> float:
+    """One pass over ``rows`` (already in batch order): the mean training loss. A final batch of
+    one window is dropped (batch norm cannot normalise it)."""
+    model.train()
+    total, seen = 0.0, 0
+    for i in range(0, len(rows), settings.batch_size):
+        batch = rows[i : i + settings.batch_size]
+        if len(batch) < 2 and seen:
+            continue
+        x = data.batch(batch).to(device, non_blocking=True)
+        y = torch.from_numpy(data.labels(batch)).to(device, non_blocking=True)
+        optimiser.zero_grad(set_to_none=True)
+        loss = loss_fn(model(x), y)
+        loss.backward()
+        if settings.grad_clip > 0:
+            nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
+        optimiser.step()
+        total += float(loss.detach()) * len(batch)
+        seen += len(batch)
+    return total / max(seen, 1)
+
+
 def fit(
     model: nn.Module,
     data: WindowData,
@@ -150,25 +180,12 @@ def fit(
     start = time.perf_counter()
     for epoch in range(1, settings.max_epochs + 1):
         t0 = time.perf_counter()
-        model.train()
-        order = rng.permutation(len(train_rows))
-        total, seen = 0.0, 0
-        for i in range(0, len(order), settings.batch_size):
-            rows = train_rows[order[i : i + settings.batch_size]]
-            if len(rows) < 2 and seen:  # a batch of one breaks batch norm; drop the remainder
-                continue
-            x, y = data.batch(rows), torch.from_numpy(data.labels(rows))
-            optimiser.zero_grad(set_to_none=True)
-            loss = loss_fn(model(x), y)
-            loss.backward()
-            if settings.grad_clip > 0:
-                nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
-            optimiser.step()
-            total += float(loss.detach()) * len(rows)
-            seen += len(rows)
+        train_loss = train_epoch(
+            model, data, train_rows[rng.permutation(len(train_rows))], settings, optimiser, loss_fn
+        )
         val = evaluate(model, data, "val", settings.eval_batch_size)
         score = _score(val, metric)
-        row = {"epoch": epoch, "train_loss": total / max(seen, 1), "seconds": 0.0}
+        row = {"epoch": epoch, "train_loss": train_loss}
         row.update({f"val_{k}": v for k, v in val.items()})
         row["seconds"] = time.perf_counter() - t0
         history.append(row)
