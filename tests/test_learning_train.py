@@ -505,3 +505,12 @@ def test_tune_shared_storage_keeps_running_trials(planted: Path, tmp_path: Path)
     assert optuna.load_study(study_name=name, storage=url).trials[other.number].state.name == (
         "RUNNING"
     )
+
+
+def test_sampler_seed_differs_per_family() -> None:
+    """GRU and LSTM share a search space: their TPE streams must differ, yet be reproducible."""
+    from graspstab.learning.tune_model import sampler_seed
+
+    assert sampler_seed(42, "gru") != sampler_seed(42, "lstm")
+    assert sampler_seed(42, "gru") == sampler_seed(42, "gru")
+    assert sampler_seed(42, "gru") != sampler_seed(43, "gru")

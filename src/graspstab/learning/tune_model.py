@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import logging
 import math
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import optuna
 import polars as pl
 import torch
@@ -61,6 +63,12 @@ def suggest(trial: optuna.Trial, name: str, spec: Any) -> Any:
         f"tune.space: {name!r} must be a list (categorical) or a mapping with low/high, "
         f"got {spec!r}"
     )
+
+
+def sampler_seed(seed: int, family: str) -> int:
+    """The family's own TPE stream (SeedSequence of seed and family): GRU and LSTM share a
+    search space, and one stream would propose them identical trials."""
+    return int(np.random.SeedSequence([seed, zlib.crc32(family.encode())]).generate_state(1)[0])
 
 
 def storage_url(storage: str | None, default_path: Path, family: str) -> str:
@@ -114,7 +122,7 @@ def tune_model(
     identity = {**params, "tune": {k: v for k, v in tune.items() if k not in ("trials", "storage")}}
     study_name = f"{family}-{stable_hash(identity, 12)}"
     url = storage_url(tune.get("storage"), Path(default_storage), family)
-    sampler = optuna.samplers.TPESampler(seed=int(tune["seed"]))
+    sampler = optuna.samplers.TPESampler(seed=sampler_seed(int(tune["seed"]), family))
     pruner = optuna.pruners.MedianPruner(
         n_startup_trials=int(tune["pruner"]["startup_trials"]),
         n_warmup_steps=int(tune["pruner"]["warmup_epochs"]),
