@@ -184,6 +184,13 @@ def _family_legend(fig_or_ax: Any, families: Sequence[str], **kwargs: Any) -> No
     fig_or_ax.legend(handles=handles, **kwargs)
 
 
+def _legend_and_title(fig: plt.Figure, families: Sequence[str], title: str) -> None:
+    """A family legend centred under a left-aligned figure title (the multi-panel figures)."""
+    _family_legend(fig, families, loc="upper center", bbox_to_anchor=(0.5, 0.955),
+                   ncol=len(families), frameon=False)  # fmt: skip
+    fig.suptitle(title, x=0.02, ha="left")
+
+
 # ------------------------------------------------------------------------------------ bars
 
 
@@ -335,19 +342,11 @@ def plot_benchmark(summary: pl.DataFrame, out: Path, dpi: int) -> Path:
         grouped_bars(ax, [METRIC_LABELS[m] for m in metrics], values)
         ax.set_title(f"4.1{letter}  {title}", loc="left", fontsize=10)
         ax.set_ylabel(PCT_LABEL)
-    _family_legend(
+    _legend_and_title(
         fig,
         families,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.955),
-        ncol=len(families),
-        frameon=False,
-    )
-    fig.suptitle(
         "Figure 4.1: fixed-task benchmark at the baseline observation window"
         f"{_seed_note(summary)}, bars = mean, error bars = ±1 std",
-        x=0.02,
-        ha="left",
     )
     fig.tight_layout(rect=(0, 0, 1, 0.92))
     return _save(fig, out, dpi)
@@ -449,15 +448,7 @@ def plot_objects(objects: pl.DataFrame, out: Path, dpi: int) -> Path:
         ax.set_title(f"4.3{letter}  test {what}", loc="left", fontsize=10)
         ax.set_ylabel(PCT_LABEL)
         ax.set_xlabel("unseen test object")
-    _family_legend(
-        fig,
-        families,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.955),
-        ncol=len(families),
-        frameon=False,
-    )
-    fig.suptitle(f"Figure 4.3: per-object test metrics{_seed_note(stats)}", x=0.02, ha="left")
+    _legend_and_title(fig, families, f"Figure 4.3: per-object test metrics{_seed_note(stats)}")
     fig.tight_layout(rect=(0, 0, 1, 0.9))
     return _save(fig, out, dpi)
 
@@ -538,19 +529,11 @@ def plot_sweep(summary: pl.DataFrame, out: Path, dpi: int) -> Path:
         ax.set_title(f"4.5{'ABCDEF'[k]}  test {METRIC_LABELS[metric]}", loc="left", fontsize=10)
         ax.set_xlabel("observation window [ms]")
         ax.set_ylabel(PCT_LABEL)
-    _family_legend(
+    _legend_and_title(
         fig,
         families,
-        loc="upper center",
-        bbox_to_anchor=(0.5, 0.955),
-        ncol=len(families),
-        frameon=False,
-    )
-    fig.suptitle(
         f"Figure 4.5: test metrics across observation-window length{_seed_note(test)}; "
         "offset and horizon fixed",
-        x=0.02,
-        ha="left",
     )
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     return _save(fig, out, dpi)
