@@ -126,7 +126,7 @@ def _latency(results: Path) -> Path:
 
 
 def _sweep(results: Path, latency: Path) -> None:
-    paths, keys = [], []
+    paths = []
     for f in FAMILIES:
         for w in WINDOWS:
             for s in SEEDS:
@@ -134,8 +134,7 @@ def _sweep(results: Path, latency: Path) -> None:
                 val = 0.0 if (f, w) == ("cnn", 0.05) else 0.3 + 0.1 * w
                 run = results / "train" / "sweep" / f / f"w{round(w * 1000)}ms" / f"seed{s}"
                 paths.append(_write_record(run, run_record(f, s, val, window_s=w)))
-                keys.append({"window_s": w})
-    studies.aggregate_sweep(paths, keys, latency, results / "studies" / "sweep")
+    studies.aggregate_sweep(paths, latency, results / "studies" / "sweep")
 
 
 def _splits(results: Path) -> None:

@@ -24,7 +24,6 @@ from graspstab.learning.metrics import (
     METRIC_KEYS,
     ThresholdChoice,
     binary_metrics,
-    mean_std,
     per_object_metrics,
     reliability_curve,
     select_threshold,
@@ -345,13 +344,3 @@ def test_reliability_curve_bins_and_empty_bins() -> None:
     assert curve["mean_predicted"][0] == pytest.approx(0.05)
     assert curve["observed_fraction"][0] == pytest.approx(1 / 3)
     assert curve["observed_fraction"][3] == 1.0
-
-
-def test_mean_std() -> None:
-    assert mean_std([1.0, 2.0, 3.0]) == (2.0, 1.0)  # ddof=1
-    mean, std = mean_std([0.5, float("nan")])
-    assert mean == 0.5 and math.isnan(std)
-    assert all(math.isnan(v) for v in mean_std([]))
-    assert all(math.isnan(v) for v in mean_std([float("nan")]))
-    mean, std = mean_std(np.array([0.9, 0.92, float("nan"), 0.94]))
-    assert mean == pytest.approx(0.92) and std == pytest.approx(0.02)

@@ -19,9 +19,14 @@ def object_splits():
     return {o: config["objects"]["items"][o]["split"] for o in object_ids()}
 
 
+def ms_of(window_s):
+    """A window length in whole milliseconds (the dataset wildcard)."""
+    return round(1000 * window_s)
+
+
 def sweep_ms():
     """The sweep's window lengths in whole milliseconds (the wildcard of trim_sweep_window)."""
-    return [round(1000 * w) for w in config["sweep"]["windows_s"]]
+    return [ms_of(w) for w in config["sweep"]["windows_s"]]
 
 
 def dataset_params(window_s):

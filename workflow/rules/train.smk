@@ -15,11 +15,6 @@ wildcard_constraints:
     k=r"[0-9]+",
 
 
-def ms_of(window_s):
-    """A window length in whole milliseconds (the dataset wildcard)."""
-    return round(1000 * window_s)
-
-
 def sweep_dataset(ms):
     """The same-end dataset of one sweep window."""
     return f"results/datasets/sweep/w{ms}ms/index.parquet"
@@ -201,9 +196,9 @@ rule aggregate_baseline:
 
 
 # Latency of the first seed's checkpoint of every baseline model and sweep configuration.
-LATENCY_KEYS = [{"study": "baseline", "family": m, "window_s": config["labels"]["window_s"]} for m in MODELS] + [
-    {"study": "sweep", "family": m, "window_s": ms / 1000} for m in MODELS for ms in sweep_ms()
-]
+LATENCY_KEYS = [
+    {"study": "baseline", "family": m, "window_s": config["labels"]["window_s"]} for m in MODELS
+] + [{"study": "sweep", "family": m, "window_s": ms / 1000} for m in MODELS for ms in sweep_ms()]
 
 
 rule measure_latency:
@@ -240,12 +235,6 @@ rule aggregate_sweep:
     params:
         step="sweep",
         out_dir="results/studies/sweep",
-        run_keys=[
-            {"window_s": ms / 1000}
-            for m in MODELS
-            for ms in sweep_ms()
-            for s in config["sweep"]["seeds"]
-        ],
     conda:
         CONDA_ENV
     threads: 1

@@ -14,8 +14,7 @@ elif step == "latency":
     )  # fmt: skip
 elif step == "sweep":
     studies.aggregate_sweep(
-        list(sm.input.metrics), list(sm.params.run_keys), sm.input.latency, sm.params.out_dir,
-        log_file=sm.log[0],
+        list(sm.input.metrics), sm.input.latency, sm.params.out_dir, log_file=sm.log[0],
     )  # fmt: skip
 elif step == "splits":
     studies.aggregate_splits(

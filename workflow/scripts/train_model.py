@@ -7,8 +7,7 @@ from graspstab.learning.train_model import train_model
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 p = dict(sm.params)
-best = sm.input.get("best")
-spec = study_spec(p["spec"], best[0] if isinstance(best, list) and best else best, p.get("pooling"))
+spec = study_spec(p["spec"], sm.input.get("best"), p.get("pooling"))
 train_model(
     Path(sm.input.index).parent,
     spec,

@@ -20,7 +20,6 @@ Empty inputs, non-binary labels and non-finite probabilities raise ``ValueError`
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -339,18 +338,3 @@ def reliability_curve(probs: Any, labels: Any, n_bins: int = 10) -> dict[str, np
         "observed_fraction": observed,
         "count": count,
     }
-
-
-def mean_std(values: Iterable[float]) -> tuple[float, float]:
-    """Mean and standard deviation across seeds (3.5.4 reports mean +- std over seeds 42-46).
-
-    NaN values are ignored. The std is the sample std (ddof=1) when >= 2 values remain, NaN when
-    exactly one remains; both are NaN when none remains.
-    """
-    v = np.asarray(list(values), dtype=np.float64).reshape(-1)
-    v = v[~np.isnan(v)]
-    if v.size == 0:
-        return float("nan"), float("nan")
-    mean = float(np.mean(v))
-    std = float(np.std(v, ddof=1)) if v.size >= 2 else float("nan")
-    return mean, std

@@ -35,10 +35,10 @@ def aggregate_baseline(
     setup_logging(log_file)
     out = Path(out_dir)
     records = _records(metrics)
-    keys = [{"window_s": None} for _ in records]
-    runs = aggregate.run_rows(records, keys).drop("window_s")
+    keys = [{} for _ in records]
+    runs = aggregate.run_rows(records, keys)
     summary = aggregate.mean_std(runs, ["family", "split"])
-    objects = aggregate.object_rows(records, keys).drop("window_s")
+    objects = aggregate.object_rows(records, keys)
     errors = aggregate.error_table(runs)
     write_parquet(out / "runs.parquet", runs)
     write_parquet(out / "summary.parquet", summary)
@@ -95,7 +95,6 @@ def measure_latencies(
 
 def aggregate_sweep(
     metrics: Sequence[str | Path],
-    keys: Sequence[Mapping[str, Any]],
     latency_table: str | Path,
     out_dir: str | Path,
     log_file: str | Path | None = None,
@@ -105,7 +104,7 @@ def aggregate_sweep(
     setup_logging(log_file)
     out = Path(out_dir)
     records = _records(metrics)
-    runs = aggregate.run_rows(records, keys)
+    runs = aggregate.run_rows(records, [{"window_s": r["window_s"]} for r in records])
     summary = aggregate.mean_std(runs, ["family", "window_s", "split"])
     latency = pl.read_parquet(latency_table).filter(pl.col("study") == "sweep")
     val = (

@@ -25,6 +25,7 @@ from graspstab.common.provenance import code_version, stable_hash
 from graspstab.learning.data import WindowData, load_window_data
 from graspstab.learning.metrics import (
     METRIC_KEYS,
+    UNDEFINED_THRESHOLD,
     ThresholdChoice,
     binary_metrics,
     per_object_metrics,
@@ -67,7 +68,7 @@ def evaluate_splits(
         )
     else:
         log.warning("no validation window: the threshold is undefined (0.5 used)")
-        choice = ThresholdChoice(0.5, "undefined", math.nan, math.nan, math.nan)
+        choice = ThresholdChoice(UNDEFINED_THRESHOLD, "undefined", math.nan, math.nan, math.nan)
     out: dict[str, Any] = {"threshold": {**vars(choice), "min_recall": threshold["min_recall"]}}
     frames = []
     for split, (rows, logits, labels) in scores.items():
