@@ -54,6 +54,36 @@ def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.Com
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
 
 
+JOB_FIELDS = ("output", "log", "benchmark", "wildcards")
+
+
+def _jobs(text: str) -> list[dict]:
+    """The jobs Snakemake printed (dry or real run): rule, outputs, log, benchmark, wildcards."""
+    jobs = []
+    for block in re.split(r"^(?=rule \w+:$|localrule \w+:$)", text, flags=re.M)[1:]:
+        rule = re.match(r"(?:local)?rule (\w+):", block).group(1)
+        job = {"rule": rule}
+        for field in JOB_FIELDS:
+            m = re.search(rf"^    {field}: (.*)$", block, flags=re.M)
+            job[field] = [v.strip() for v in m.group(1).split(",")] if m else []
+        job["wildcards"] = dict(w.split("=", 1) for w in job["wildcards"])
+        jobs.append(job)
+    return jobs
+
+
+def _dry_jobs(workdir: Path, config: list[str], env: dict[str, str], *extra: str) -> list[dict]:
+    """The jobs a dry run of the report would run."""
+    proc = _snakemake(workdir, "results/report.html", "--dry-run", *config, *extra, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return _jobs(proc.stdout)
+
+
+def _with(config: list[str], old: str, new: str) -> list[str]:
+    """The config list with one --config item replaced (--config keys do not merge)."""
+    assert old in config
+    return [new if item == old else item for item in config]
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory, ycb_dir, hand_assets_dir):
     workdir = tmp_path_factory.mktemp("wf")
@@ -249,3 +279,161 @@ def test_learning_rate_change_reruns_that_model_only(run):
     assert not jobs & {"train_split_model", "aggregate_splits", "label_windows", "replay_grasps"}
     models = set(re.findall(r"wildcards: model=(\w+)", proc.stdout))
     assert models == {"gru"}
+
+
+EXPENSIVE = {"preprocess_object", "anneal_grasps", "replay_grasps", "tune_model", "train_model",
+             "train_sweep_model", "train_split_model"}  # fmt: skip
+
+
+@pytest.mark.workflow
+def test_annealing_parameter_reruns_from_annealing_on(run):
+    workdir, env, config = run
+    changed = _with(config, TOY_SYNTHESIS, TOY_SYNTHESIS.replace("1500", "1400"))
+    jobs = _dry_jobs(workdir, changed, env)
+    rules = {j["rule"] for j in jobs}
+    anneal = {(j["wildcards"]["object"], j["wildcards"]["shard"]) for j in jobs
+              if j["rule"] == "anneal_grasps"}  # fmt: skip
+    objects = {"061_foam_brick", "014_lemon", "077_rubiks_cube"}
+    assert anneal == {(o, s) for o in objects for s in ("0", "1")}
+    assert sum(j["rule"] == "replay_grasps" for j in jobs) == 6
+    assert {"label_windows", "train_model", "tune_model", "report"} <= rules
+    assert not rules & {"preprocess_object", "build_hand", "fetch_ycb_object",
+                        "fetch_hand_description", "plot_objects", "plot_hand"}  # fmt: skip
+
+
+@pytest.mark.workflow
+def test_adding_an_object_runs_only_its_jobs_plus_downstream(run):
+    workdir, env, config = run
+    added = "010_potted_meat_can"
+    changed = _with(config, OBJECTS, OBJECTS.replace("]", f",{added}]"))
+    jobs = _dry_jobs(workdir, changed, env)
+    per_object = [j for j in jobs if "object" in j["wildcards"]]
+    assert {j["wildcards"]["object"] for j in per_object} == {added}
+    assert {j["rule"] for j in per_object} == {
+        "fetch_ycb_object", "preprocess_object", "anneal_grasps", "replay_grasps",
+        "summarise_grasps"}  # fmt: skip
+    assert sum(j["rule"] == "anneal_grasps" for j in per_object) == 2  # its two shards
+    rules = {j["rule"] for j in jobs}
+    assert "build_hand" not in rules
+    assert {"label_windows", "aggregate_baseline", "report"} <= rules  # downstream aggregation
+
+
+@pytest.mark.workflow
+def test_no_two_jobs_write_the_same_file(run):
+    workdir, env, config = run
+    jobs = _dry_jobs(workdir, config, env, "--forceall")
+    declared = [p for j in jobs for f in ("output", "log", "benchmark") for p in j[f]]
+    duplicates = {p for p in declared if declared.count(p) > 1}
+    assert not duplicates
+    # and nothing under results/ is written that no job declares (the Optuna database is the one
+    # undeclared file: one tune_model job owns each)
+    declared_paths = {workdir / p for p in declared}
+    undeclared = []
+    for path in (workdir / "results").rglob("*"):
+        if path.is_file() and not any(d == path or d in path.parents for d in declared_paths):
+            undeclared.append(str(path.relative_to(workdir)))
+    assert all(re.fullmatch(r"results/tune/\w+/study\.sqlite", p) for p in undeclared), undeclared
+    assert not list((workdir / "results").rglob("*.tmp"))  # no leftover partial files
+
+
+def _assert_same_replays(reference: Path, other: Path) -> None:
+    """Every replay output of ``other`` equals the reference's, NaN for NaN, except the
+    wall-clock columns."""
+    import numpy as np
+    import polars as pl
+
+    files = sorted((reference / "results" / "replay").rglob("*.*"))
+    assert files
+    assert sorted((other / "results" / "replay").rglob("*.*")) == [
+        other / f.relative_to(reference) for f in files
+    ]
+    for path in files:
+        twin = other / path.relative_to(reference)
+        if path.suffix == ".parquet":
+            a, b = pl.read_parquet(path), pl.read_parquet(twin)
+            assert a.columns == b.columns, path
+            for col in (c for c in a.columns if "wall" not in c):
+                np.testing.assert_array_equal(a[col].to_numpy(), b[col].to_numpy(), err_msg=col)
+        else:
+            with np.load(path) as a, np.load(twin) as b:
+                assert a.files == b.files, path
+                for key in a.files:
+                    np.testing.assert_array_equal(a[key], b[key], err_msg=f"{path}: {key}")
+
+
+@pytest.mark.workflow
+def test_run_killed_mid_replay_resumes_to_identical_outputs(run, tmp_path):
+    """SIGKILL the whole Snakemake process group while replays run, restart, compare with the
+    uninterrupted run."""
+    import shutil
+    import signal
+    import time
+
+    workdir, env, config = run
+    killed = tmp_path / "wf"
+    # Everything up to annealing, with Snakemake's metadata; no replay outputs and no cache, so
+    # the restarted run has to replay again.
+    shutil.copytree(workdir, killed, symlinks=True,
+                    ignore=shutil.ignore_patterns(".graspstab-cache", "replay", "replay_grasps",
+                                                  "locks", "incomplete"))  # fmt: skip
+    objects = ("061_foam_brick", "014_lemon", "077_rubiks_cube")
+    targets = [f"results/replay/{o}/replays_{s}.parquet" for o in objects for s in (0, 1)]
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(killed),
+           "--cores", "2", *targets, *config]  # fmt: skip
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)  # fmt: skip
+    logs = killed / "results" / "logs" / "replay_grasps"
+    deadline = time.monotonic() + 300
+    try:
+        # kill once a replay has started computing (its log has content) and before all are done
+        while time.monotonic() < deadline and proc.poll() is None:
+            if logs.is_dir() and any(p.stat().st_size > 0 for p in logs.glob("*.log")):
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, "the run finished before it could be killed"
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    done = [t for t in targets if (killed / t).exists()]
+    assert len(done) < len(targets)  # the kill interrupted the replays
+    # a hard kill leaves Snakemake's lock behind: release it as a user would (README)
+    unlock = _snakemake(killed, "--unlock", *targets, *config, env=env)
+    assert unlock.returncode == 0, unlock.stderr[-3000:]
+    resumed = _snakemake(killed, *targets, *config, env=env)
+    assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
+    assert not list((killed / "results").rglob("*.tmp"))
+    _assert_same_replays(workdir, killed)
+
+
+def _expensive_outputs(workdir: Path, jobs: list[dict]) -> dict[str, bytes]:
+    return {p: (workdir / p).read_bytes() for j in jobs if j["rule"] in EXPENSIVE
+            for p in j["output"] if (workdir / p).is_file()}  # fmt: skip
+
+
+@pytest.mark.workflow
+def test_reverted_change_is_found_by_content(run):
+    """Change an annealing parameter, run, revert it, run again: every expensive job of the
+    second run restores its earlier outputs, byte for byte, instead of recomputing. (Last in
+    this module: it rewrites the shared run's results, with the same content.)"""
+    workdir, env, config = run
+    all_jobs = _dry_jobs(workdir, config, env, "--forceall")
+    before = _expensive_outputs(workdir, all_jobs)
+    changed = _with(config, TOY_SYNTHESIS, TOY_SYNTHESIS.replace("1500", "1400"))
+    proc = _snakemake(workdir, "results/report.html", *changed, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert _expensive_outputs(workdir, all_jobs) != before  # the change did change the results
+
+    proc = _snakemake(workdir, "results/report.html", *config, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    ran = [j for j in _jobs(proc.stdout + proc.stderr) if j["rule"] in EXPENSIVE]
+    assert {"anneal_grasps", "replay_grasps", "train_model", "tune_model"} <= {
+        j["rule"] for j in ran
+    }
+    for job in ran:
+        log_text = (workdir / job["log"][0]).read_text()
+        assert log_text.startswith("graspstab cache: restored"), (job, log_text[:500])
+    assert _expensive_outputs(workdir, all_jobs) == before
+    again = _snakemake(workdir, "results/report.html", "--dry-run", *config, env=env)
+    assert "Nothing to be done" in again.stdout + again.stderr

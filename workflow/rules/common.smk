@@ -1,6 +1,9 @@
 # Configuration (Hydra compose + schema validation, once at load time) and input functions.
 
+import functools
 from pathlib import Path
+
+from graspstab.learning.splits import sample_assignments
 
 from graspstab.config import ConfigError, load_config
 
@@ -65,3 +68,116 @@ def shard_tables(wildcards):
 def grasp_outputs(name):
     """One synthesis artefact for every object of the run."""
     return expand("results/grasps/{object}/{name}", object=object_ids(), name=name)
+
+
+# Window datasets (dataset.smk).
+
+
+def replay_outputs(kind):
+    """Every replay table (kind "replays", .parquet) or trace file (kind "traces", .npz)."""
+    ext = "parquet" if kind == "replays" else "npz"
+    return expand(
+        f"results/replay/{{object}}/{kind}_{{shard}}.{ext}",
+        object=object_ids(),
+        shard=range(config["synthesis"]["shards"]),
+    )
+
+
+def object_splits():
+    """The split of every object of the run (3.5.1)."""
+    return {o: config["objects"]["items"][o]["split"] for o in object_ids()}
+
+
+def ms_of(window_s):
+    """A window length in whole milliseconds (the dataset wildcard)."""
+    return round(1000 * window_s)
+
+
+def sweep_ms():
+    """The sweep's window lengths in whole milliseconds (the wildcard of trim_sweep_window)."""
+    return [ms_of(w) for w in config["sweep"]["windows_s"]]
+
+
+def dataset_params(window_s):
+    """What a dataset depends on: labelling rules, splits, time step, seed and its window."""
+    return {
+        "labels": config["labels"],
+        "splits": object_splits(),
+        "dt": config["replay"]["timestep"],
+        "seed": config["seed"],
+        "window_s": window_s,
+    }
+
+
+# Learning studies (train.smk).
+
+MODELS = ["cnn", "gru", "lstm"]
+RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet"}
+
+
+def sweep_dataset(ms):
+    """The same-end dataset of one sweep window."""
+    return f"results/datasets/sweep/w{ms}ms/index.parquet"
+
+
+def tuned_best(model):
+    """The tuned spec of a family when the studies use tuned configurations, else nothing."""
+    if config["sweep"]["configuration"] == "tuned":
+        return {"best": f"results/tune/{model}/best.json"}
+    return {}
+
+
+def reference_spec(model):
+    """The study spec of a family when the studies do not use tuning (3.4.3)."""
+    if config["sweep"]["configuration"] == "tuned":
+        return None
+    return config["sweep"]["models"][model]
+
+
+@functools.cache
+def assignments():
+    """The split study's object-to-split assignments (4.4), drawn when a job needs them, so a run
+    that targets, say, one object's preprocessing does not need a complete split."""
+    try:
+        return sample_assignments(
+            object_splits(), config["splits"]["count"], config["splits"]["sample_seed"]
+        )
+    except ValueError as exc:
+        raise WorkflowError(
+            f"graspstab configuration error: {exc}; the run's objects and splits are "
+            f"{object_splits()} (objects.items.<id>.split). Give at least one object each split, "
+            "or target outputs that do not need the learning studies."
+        ) from None
+
+
+def run_outputs(root, checkpoint=True):
+    files = dict(RUN_FILES, **({"checkpoint": "model.pt"} if checkpoint else {}))
+    return {k: f"{root}/{v}" for k, v in files.items()}
+
+
+def baseline_runs(name, seeds=None):
+    return expand(
+        "results/train/baseline/{model}/seed{seed}/{name}",
+        model=MODELS,
+        seed=seeds or config["train"]["seeds"],
+        name=name,
+    )
+
+
+def sweep_runs(name, seeds=None):
+    return expand(
+        "results/train/sweep/{model}/w{ms}ms/seed{seed}/{name}",
+        model=MODELS,
+        ms=sweep_ms(),
+        seed=seeds or config["sweep"]["seeds"],
+        name=name,
+    )
+
+
+def split_runs():
+    return expand(
+        "results/train/splits/{model}/a{k}/seed{seed}/metrics.json",
+        model=config["splits"]["family"],
+        k=range(len(assignments())),
+        seed=config["splits"]["seeds"],
+    )

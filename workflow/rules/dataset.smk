@@ -4,42 +4,6 @@
 DATASET_FILES = ["index.parquet", "windows.npy", "normalisation.json", "summary.json"]
 
 
-def replay_outputs(kind):
-    """Every replay table (kind "replays", .parquet) or trace file (kind "traces", .npz)."""
-    ext = "parquet" if kind == "replays" else "npz"
-    return expand(
-        f"results/replay/{{object}}/{kind}_{{shard}}.{ext}",
-        object=object_ids(),
-        shard=range(config["synthesis"]["shards"]),
-    )
-
-
-def object_splits():
-    """The split of every object of the run (3.5.1)."""
-    return {o: config["objects"]["items"][o]["split"] for o in object_ids()}
-
-
-def ms_of(window_s):
-    """A window length in whole milliseconds (the dataset wildcard)."""
-    return round(1000 * window_s)
-
-
-def sweep_ms():
-    """The sweep's window lengths in whole milliseconds (the wildcard of trim_sweep_window)."""
-    return [ms_of(w) for w in config["sweep"]["windows_s"]]
-
-
-def dataset_params(window_s):
-    """What a dataset depends on: labelling rules, splits, time step, seed and its window."""
-    return {
-        "labels": config["labels"],
-        "splits": object_splits(),
-        "dt": config["replay"]["timestep"],
-        "seed": config["seed"],
-        "window_s": window_s,
-    }
-
-
 rule label_windows:
     input:
         tables=replay_outputs("replays"),

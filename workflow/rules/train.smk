@@ -2,46 +2,12 @@
 # window-length sweep, split robustness, latency and the friction-ratio proxy. One training job is
 # one model x dataset x seed; aggregation jobs turn their metrics.json files into study tables.
 
-from graspstab.learning.splits import sample_assignments
-
-MODELS = ["cnn", "gru", "lstm"]
-RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet"}
-
 
 wildcard_constraints:
     model="|".join(MODELS),
     seed=r"[0-9]+",
     ms=r"[0-9]+",
     k=r"[0-9]+",
-
-
-def sweep_dataset(ms):
-    """The same-end dataset of one sweep window."""
-    return f"results/datasets/sweep/w{ms}ms/index.parquet"
-
-
-def tuned_best(model):
-    """The tuned spec of a family when the studies use tuned configurations, else nothing."""
-    if config["sweep"]["configuration"] == "tuned":
-        return {"best": f"results/tune/{model}/best.json"}
-    return {}
-
-
-def reference_spec(model):
-    """The study spec of a family when the studies do not use tuning (3.4.3)."""
-    if config["sweep"]["configuration"] == "tuned":
-        return None
-    return config["sweep"]["models"][model]
-
-
-ASSIGNMENTS = sample_assignments(
-    object_splits(), config["splits"]["count"], config["splits"]["sample_seed"]
-)
-
-
-def run_outputs(root, checkpoint=True):
-    files = dict(RUN_FILES, **({"checkpoint": "model.pt"} if checkpoint else {}))
-    return {k: f"{root}/{v}" for k, v in files.items()}
 
 
 rule train_model:
@@ -127,7 +93,7 @@ rule train_split_model:
         spec=lambda wc: reference_spec(wc.model),
         pooling=config["sweep"]["recurrent_pooling"],
         train=config["train"],
-        assignment=lambda wc: ASSIGNMENTS[int(wc.k)],
+        assignment=lambda wc: assignments()[int(wc.k)],
         extra=lambda wc: {"assignment_index": int(wc.k)},
     conda:
         CONDA_ENV
@@ -143,34 +109,6 @@ rule train_split_model:
         "../scripts/train_model.py"
 
 
-def baseline_runs(name, seeds=None):
-    return expand(
-        "results/train/baseline/{model}/seed{seed}/{name}",
-        model=MODELS,
-        seed=seeds or config["train"]["seeds"],
-        name=name,
-    )
-
-
-def sweep_runs(name, seeds=None):
-    return expand(
-        "results/train/sweep/{model}/w{ms}ms/seed{seed}/{name}",
-        model=MODELS,
-        ms=sweep_ms(),
-        seed=seeds or config["sweep"]["seeds"],
-        name=name,
-    )
-
-
-def split_runs():
-    return expand(
-        "results/train/splits/{model}/a{k}/seed{seed}/metrics.json",
-        model=config["splits"]["family"],
-        k=range(len(ASSIGNMENTS)),
-        seed=config["splits"]["seeds"],
-    )
-
-
 rule aggregate_baseline:
     input:
         metrics=baseline_runs("metrics.json"),
@@ -182,7 +120,7 @@ rule aggregate_baseline:
         overview="results/studies/baseline/summary.json",
     params:
         step="baseline",
-        out_dir="results/studies/baseline",
+        out_dir=lambda wc, output: str(Path(output[0]).parent),
     conda:
         CONDA_ENV
     threads: 1
@@ -191,6 +129,8 @@ rule aggregate_baseline:
         runtime=10,
     log:
         "results/logs/aggregate_baseline/baseline.log",
+    benchmark:
+        "results/benchmarks/aggregate_baseline/baseline.tsv"
     script:
         "../scripts/studies.py"
 
@@ -219,6 +159,8 @@ rule measure_latency:
         runtime=30,
     log:
         "results/logs/measure_latency/latency.log",
+    benchmark:
+        "results/benchmarks/measure_latency/latency.tsv"
     script:
         "../scripts/studies.py"
 
@@ -234,7 +176,7 @@ rule aggregate_sweep:
         overview="results/studies/sweep/summary.json",
     params:
         step="sweep",
-        out_dir="results/studies/sweep",
+        out_dir=lambda wc, output: str(Path(output[0]).parent),
     conda:
         CONDA_ENV
     threads: 1
@@ -243,20 +185,22 @@ rule aggregate_sweep:
         runtime=10,
     log:
         "results/logs/aggregate_sweep/sweep.log",
+    benchmark:
+        "results/benchmarks/aggregate_sweep/sweep.tsv"
     script:
         "../scripts/studies.py"
 
 
 rule aggregate_splits:
     input:
-        metrics=split_runs(),
+        metrics=lambda wc: split_runs(),
     output:
         runs="results/studies/splits/runs.parquet",
         overview="results/studies/splits/summary.json",
     params:
         step="splits",
-        out_dir="results/studies/splits",
-        assignments=ASSIGNMENTS,
+        out_dir=lambda wc, output: str(Path(output[0]).parent),
+        assignments=lambda wc: assignments(),
     conda:
         CONDA_ENV
     threads: 1
@@ -265,6 +209,8 @@ rule aggregate_splits:
         runtime=10,
     log:
         "results/logs/aggregate_splits/splits.log",
+    benchmark:
+        "results/benchmarks/aggregate_splits/splits.tsv"
     script:
         "../scripts/studies.py"
 
@@ -277,7 +223,7 @@ rule evaluate_proxy:
         "results/studies/proxy.json",
     params:
         step="proxy",
-        dataset="results/datasets/baseline",
+        dataset=lambda wc, input: str(Path(input.index).parent),
     conda:
         CONDA_ENV
     threads: 1
@@ -286,6 +232,8 @@ rule evaluate_proxy:
         runtime=10,
     log:
         "results/logs/evaluate_proxy/proxy.log",
+    benchmark:
+        "results/benchmarks/evaluate_proxy/proxy.tsv"
     script:
         "../scripts/studies.py"
 

@@ -2,17 +2,25 @@
 
 from pathlib import Path
 
+from graspstab.common.cache import run_cached
 from graspstab.synthesis.anneal_grasps import anneal_grasps
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-anneal_grasps(
-    sm.wildcards.object,
-    Path(sm.input.meta).parent,
-    Path(sm.input.hand[0]).parent,
-    sm.output[0],
-    params=dict(sm.params.synthesis),
-    seed=int(sm.params.seed),
-    shard=int(sm.wildcards.shard),
-    threads=sm.threads,
-    log_file=sm.log[0],
-)
+
+
+def compute() -> None:
+    anneal_grasps(
+        sm.wildcards.object,
+        Path(sm.input.meta).parent,
+        Path(sm.input.hand[0]).parent,
+        sm.output[0],
+        params=dict(sm.params.synthesis),
+        seed=int(sm.params.seed),
+        shard=int(sm.wildcards.shard),
+        threads=sm.threads,
+        log_file=sm.log[0],
+    )
+
+
+# Content-addressed: restored from the cache when the same job ran before (README, "Caching").
+run_cached(sm, ("synthesis",), compute)

@@ -2,15 +2,23 @@
 
 from pathlib import Path
 
+from graspstab.common.cache import run_cached
 from graspstab.objects.preprocess_object import preprocess_object
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-preprocess_object(
-    sm.wildcards.object,
-    sm.input.mesh,
-    Path(sm.output.meta).parent,
-    mass=sm.params.mass,
-    params=dict(sm.params.preprocess),
-    rotation_deg=sm.params.rotation_deg,
-    log_file=sm.log[0],
-)
+
+
+def compute() -> None:
+    preprocess_object(
+        sm.wildcards.object,
+        sm.input.mesh,
+        Path(sm.output.meta).parent,
+        mass=sm.params.mass,
+        params=dict(sm.params.preprocess),
+        rotation_deg=sm.params.rotation_deg,
+        log_file=sm.log[0],
+    )
+
+
+# Content-addressed: restored from the cache when the same job ran before (README, "Caching").
+run_cached(sm, ("objects",), compute)

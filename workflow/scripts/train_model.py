@@ -2,21 +2,29 @@
 
 from pathlib import Path
 
+from graspstab.common.cache import run_cached
 from graspstab.learning.specs import study_spec
 from graspstab.learning.train_model import train_model
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-p = dict(sm.params)
-spec = study_spec(p["spec"], sm.input.get("best"), p.get("pooling"))
-train_model(
-    Path(sm.input.index).parent,
-    spec,
-    dict(p["train"]),
-    int(sm.wildcards.seed),
-    Path(sm.output.metrics).parent,
-    assignment=p.get("assignment"),
-    threads=sm.threads,
-    checkpoint="checkpoint" in sm.output.keys(),
-    extra=p.get("extra"),
-    log_file=sm.log[0],
-)
+
+
+def compute() -> None:
+    p = dict(sm.params)
+    spec = study_spec(p["spec"], sm.input.get("best"), p.get("pooling"))
+    train_model(
+        Path(sm.input.index).parent,
+        spec,
+        dict(p["train"]),
+        int(sm.wildcards.seed),
+        Path(sm.output.metrics).parent,
+        assignment=p.get("assignment"),
+        threads=sm.threads,
+        checkpoint="checkpoint" in sm.output.keys(),
+        extra=p.get("extra"),
+        log_file=sm.log[0],
+    )
+
+
+# Content-addressed: restored from the cache when the same job ran before (README, "Caching").
+run_cached(sm, ("learning",), compute)

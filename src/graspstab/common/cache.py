@@ -1,0 +1,215 @@
+"""Content-addressed results (DESIGN.md, caching contract point 3).
+
+An expensive job's outputs are stored under the hash of what determines them: the rule, its params
+and wildcards, the *content* of its inputs, the code version of the library stages it runs and the
+versions of the numerical packages. A later job with the same key, after a reverted parameter or in
+another workflow directory sharing the cache, restores the files instead of recomputing them.
+
+Why our own cache rather than Snakemake's between-workflow cache (``cache: True``): that one needs
+``--cache`` and an environment variable on every invocation, supports several outputs only as
+``multiext``, and hashes the rule's script file, not the library code the thin scripts call, so a
+library change would silently restore stale results.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import importlib.metadata
+import json
+import logging
+import os
+import re
+import shutil
+import tempfile
+import time
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from graspstab.common.provenance import _PKG_ROOT, code_version, stable_hash
+
+log = logging.getLogger(__name__)
+
+# Packages whose version can change a numerical result: part of every key.
+KEY_PACKAGES = ("numpy", "scipy", "mujoco", "torch", "coacd", "trimesh", "polars", "pyarrow")
+ENTRY_FILE = "entry.json"
+
+
+def content_digest(path: str | os.PathLike[str]) -> str:
+    """SHA-256 of a file's bytes, or of a directory's relative paths and file contents."""
+    p = Path(path)
+    h = hashlib.sha256()
+    if p.is_dir():
+        for f in sorted(q for q in p.rglob("*") if q.is_file()):
+            h.update(str(f.relative_to(p)).encode() + b"\0")
+            h.update(content_digest(f).encode())
+        return "dir:" + h.hexdigest()
+    with open(p, "rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()
+
+
+def package_versions(names: Iterable[str] = KEY_PACKAGES) -> dict[str, str]:
+    """Installed versions of the packages in the key ('-' where absent)."""
+    out = {}
+    for name in names:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = "-"
+    return out
+
+
+def stage_closure(stages: Iterable[str]) -> list[str]:
+    """The named sub-packages plus every graspstab sub-package they import, transitively, so a
+    change in shared code (e.g. ``labels`` used by ``replay``) reaches every key that depends on
+    it."""
+    pattern = re.compile(r"^\s*(?:from|import) graspstab\.(\w+)", re.M)
+    seen: set[str] = set()
+    todo = list(stages)
+    while todo:
+        name = todo.pop()
+        if name in seen:
+            continue
+        seen.add(name)
+        root = _PKG_ROOT / name
+        files = sorted(root.rglob("*.py")) if root.is_dir() else [root.with_suffix(".py")]
+        for f in files:
+            todo.extend(pattern.findall(f.read_text()))
+    return sorted(seen)
+
+
+def job_key(
+    rule: str,
+    stages: Iterable[str],
+    params: Any,
+    wildcards: Mapping[str, str],
+    inputs: Iterable[str | os.PathLike[str]],
+) -> tuple[str, dict[str, Any]]:
+    """The job's cache key and the record it hashes. Input *paths* are not part of it, only their
+    content in order, so another workflow directory with the same inputs finds the same key."""
+    material = {
+        "rule": rule,
+        "code_version": code_version(*stage_closure(stages)),
+        "params": params,
+        "wildcards": dict(wildcards),
+        "inputs": [content_digest(p) for p in inputs],
+        "packages": package_versions(),
+    }
+    return stable_hash(material, length=32), material
+
+
+class ResultCache:
+    """A directory of entries ``<root>/<rule>/<key>/``, each holding a job's output files by
+    name plus ``entry.json``. Entries appear atomically (built aside, then renamed)."""
+
+    def __init__(self, root: str | os.PathLike[str]):
+        self.root = Path(root)
+
+    def entry(self, rule: str, key: str) -> Path:
+        return self.root / rule / key
+
+    def restore(self, rule: str, key: str, outputs: Mapping[str, str | os.PathLike[str]]) -> bool:
+        """Put a stored entry's files at ``outputs``; False (nothing written) if there is none."""
+        entry = self.entry(rule, key)
+        if not (entry / ENTRY_FILE).is_file():
+            return False
+        if any(not (entry / name).is_file() for name in outputs):
+            log.warning("cache entry %s lacks some outputs; recomputing", entry)
+            return False
+        now = time.time()
+        for name, target in outputs.items():
+            _place(entry / name, Path(target))
+            # The job has just produced this file: mtime now, or Snakemake would see it as older
+            # than its inputs and schedule it again.
+            os.utime(target, (now, now))
+        return True
+
+    def store(
+        self,
+        rule: str,
+        key: str,
+        outputs: Mapping[str, str | os.PathLike[str]],
+        material: Mapping[str, Any],
+    ) -> Path:
+        """Add the job's outputs as the entry of ``key`` (a concurrent identical entry wins)."""
+        entry = self.entry(rule, key)
+        if (entry / ENTRY_FILE).is_file():
+            return entry
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
+        try:
+            for name, source in outputs.items():
+                _place(Path(source), tmp / name)
+            record = {"key": key, "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **material}
+            (tmp / ENTRY_FILE).write_text(json.dumps(record, indent=1, sort_keys=True, default=str))
+            try:
+                os.rename(tmp, entry)
+            except OSError:  # another job stored the same key first: keep theirs
+                if not (entry / ENTRY_FILE).is_file():
+                    raise
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp)
+        return entry
+
+
+def _place(source: Path, target: Path) -> None:
+    """Copy ``source`` to ``target`` atomically. A copy, not a hard link: a writer that opens an
+    output in place (outside Snakemake, which deletes outputs first) would otherwise rewrite the
+    cache entry through the shared inode. The price is disk: the cached outputs are stored twice."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.cache.tmp")
+    try:
+        shutil.copyfile(source, tmp)
+        os.replace(tmp, target)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+def cache_settings(config: Mapping[str, Any]) -> tuple[bool, Path]:
+    """Whether the cache is on, and its root, from the resolved config's ``cache`` group."""
+    group = config.get("cache") or {}
+    return bool(group.get("enabled", False)), Path(group.get("dir") or ".graspstab-cache")
+
+
+def run_cached(smk: Any, stages: Iterable[str], compute: Callable[[], None]) -> bool:
+    """Run a Snakemake job's ``compute`` unless its outputs are in the cache; store them after.
+
+    ``smk`` is the ``snakemake`` object of a script job; ``stages`` are the graspstab
+    sub-packages whose code the job runs. Returns True when the outputs were restored."""
+    enabled, root = cache_settings(smk.config)
+    if not enabled:
+        compute()
+        return False
+    outputs = {name: path for name, path in _named(smk.output)}
+    params = {name: value for name, value in _named(smk.params)}
+    key, material = job_key(smk.rule, stages, params, dict(smk.wildcards.items()), list(smk.input))
+    cache = ResultCache(root)
+    if cache.restore(smk.rule, key, outputs):
+        message = f"restored from cache entry {cache.entry(smk.rule, key)} (key {key})"
+        for log_path in list(smk.log)[:1]:
+            Path(log_path).parent.mkdir(parents=True, exist_ok=True)
+            with open(log_path, "w") as fh:  # this job's log: it restored, it did not compute
+                fh.write(f"graspstab cache: {message}\n")
+        log.info(message)
+        return True
+    compute()
+    cache.store(smk.rule, key, outputs, material)
+    return False
+
+
+def _named(items: Any) -> list[tuple[str, Any]]:
+    """(name, value) for every item of a Snakemake Namedlist, positional ones named by index."""
+    names = {index: name for name, index in _name_index(items)}
+    return [(names.get(i, str(i)), value) for i, value in enumerate(items)]
+
+
+def _name_index(items: Any) -> list[tuple[str, int]]:
+    """Names of a Namedlist's items with their positions (single items only)."""
+    out = []
+    for name, (start, end) in getattr(items, "_names", {}).items():
+        if end is None or end == start + 1:
+            out.append((name, start))
+    return out

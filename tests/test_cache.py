@@ -1,0 +1,166 @@
+"""The content-addressed result cache: keys follow content, entries restore exact bytes."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+from snakemake.iocontainers import Namedlist
+
+from graspstab.common.cache import (
+    ResultCache,
+    content_digest,
+    job_key,
+    run_cached,
+    stage_closure,
+)
+
+
+def _job(tmp: Path, cache_dir: Path, *, params=None, inputs=None, enabled=True, outdir="out"):
+    """A stand-in for the ``snakemake`` object a script job receives."""
+    inputs = inputs or [tmp / "in.txt"]
+    return SimpleNamespace(
+        rule="replay_grasps",
+        config={"cache": {"enabled": enabled, "dir": str(cache_dir)}},
+        input=Namedlist(fromdict={f"i{k}": str(p) for k, p in enumerate(inputs)}),
+        output=Namedlist(
+            fromdict={"table": str(tmp / outdir / "t.txt"), "trace": str(tmp / outdir / "r.bin")}
+        ),
+        params=Namedlist(fromdict={"replay": params or {"steps": 10}}),
+        wildcards=Namedlist(fromdict={"object": "014_lemon", "shard": "0"}),
+        log=[str(tmp / "logs" / "job.log")],
+    )
+
+
+class _Counter:
+    """A compute step that writes outputs derived from its input and counts its calls."""
+
+    def __init__(self, job):
+        self.job, self.calls = job, 0
+
+    def __call__(self):
+        self.calls += 1
+        text = Path(self.job.input[0]).read_text()
+        Path(self.job.output.table).parent.mkdir(parents=True, exist_ok=True)
+        Path(self.job.output.table).write_text(f"{text}|{self.job.params.replay}|{time.time()}")
+        Path(self.job.output.trace).write_bytes(os.urandom(64))
+
+
+def test_revert_restores_the_first_results_byte_for_byte(tmp_path):
+    (tmp_path / "in.txt").write_text("grasps")
+    cache = tmp_path / "cache"
+    first = _job(tmp_path, cache)
+    compute = _Counter(first)
+    assert run_cached(first, ["replay"], compute) is False
+    original = {k: Path(v).read_bytes() for k, v in first.output.items()}
+
+    changed = _job(tmp_path, cache, params={"steps": 20})
+    compute_changed = _Counter(changed)
+    assert run_cached(changed, ["replay"], compute_changed) is False
+    assert compute_changed.calls == 1
+    assert Path(changed.output.table).read_bytes() != original["table"]
+
+    reverted = _job(tmp_path, cache)
+    for p in reverted.output:  # Snakemake removes outputs before it runs a job
+        Path(p).unlink()
+    compute_reverted = _Counter(reverted)
+    assert run_cached(reverted, ["replay"], compute_reverted) is True
+    assert compute_reverted.calls == 0
+    assert {k: Path(v).read_bytes() for k, v in reverted.output.items()} == original
+    assert "restored from cache entry" in Path(reverted.log[0]).read_text()
+    # the restored files are new to Snakemake: their mtime is now, not the entry's
+    assert time.time() - Path(reverted.output.table).stat().st_mtime < 60
+
+
+def test_key_follows_input_content_not_paths(tmp_path):
+    a, b = tmp_path / "a.txt", tmp_path / "elsewhere" / "b.txt"
+    b.parent.mkdir()
+    a.write_text("same bytes")
+    b.write_text("same bytes")
+    key = lambda p, **kw: job_key("r", ["objects"], kw.get("params", {"x": 1}), {}, [p])[0]  # noqa: E731
+    assert key(a) == key(b)
+    assert key(a, params={"x": 2}) != key(a)
+    b.write_text("other bytes")
+    assert key(a) != key(b)
+    # key order of the params does not matter, their values do
+    k1 = job_key("r", ["objects"], {"x": 1, "y": 2}, {}, [a])[0]
+    k2 = job_key("r", ["objects"], {"y": 2, "x": 1}, {}, [a])[0]
+    assert k1 == k2
+    # a different rule, wildcard or stage code is a different result
+    assert job_key("q", ["objects"], {"x": 1}, {}, [a])[0] != key(a)
+    assert job_key("r", ["objects"], {"x": 1}, {"shard": "1"}, [a])[0] != key(a)
+    assert job_key("r", ["synthesis"], {"x": 1}, {}, [a])[0] != key(a)
+
+
+def test_another_workflow_directory_shares_the_cache(tmp_path):
+    cache = tmp_path / "shared-cache"
+    for d in ("wf1", "wf2"):
+        (tmp_path / d).mkdir()
+        (tmp_path / d / "in.txt").write_text("grasps")
+    one = _job(tmp_path / "wf1", cache)
+    run_cached(one, ["replay"], _Counter(one))
+    two = _job(tmp_path / "wf2", cache)
+    compute = _Counter(two)
+    assert run_cached(two, ["replay"], compute) is True and compute.calls == 0
+    assert Path(two.output.trace).read_bytes() == Path(one.output.trace).read_bytes()
+
+
+def test_failed_compute_stores_nothing(tmp_path):
+    (tmp_path / "in.txt").write_text("grasps")
+    cache = tmp_path / "cache"
+    job = _job(tmp_path, cache)
+
+    def boom():
+        raise RuntimeError("replay diverged")
+
+    with pytest.raises(RuntimeError):
+        run_cached(job, ["replay"], boom)
+    assert not list(cache.rglob("entry.json"))
+    compute = _Counter(job)
+    assert run_cached(job, ["replay"], compute) is False and compute.calls == 1
+
+
+def test_disabled_cache_always_computes_and_stores_nothing(tmp_path):
+    (tmp_path / "in.txt").write_text("grasps")
+    cache = tmp_path / "cache"
+    job = _job(tmp_path, cache, enabled=False)
+    compute = _Counter(job)
+    run_cached(job, ["replay"], compute)
+    run_cached(job, ["replay"], compute)
+    assert compute.calls == 2 and not cache.exists()
+
+
+def test_incomplete_entry_is_ignored_and_concurrent_store_keeps_one(tmp_path):
+    src = tmp_path / "f.txt"
+    src.write_text("x")
+    cache = ResultCache(tmp_path / "cache")
+    # a half-built entry (no entry.json, e.g. a job killed while storing) is not a hit
+    (cache.entry("r", "k")).mkdir(parents=True)
+    (cache.entry("r", "k") / "f").write_text("partial")
+    assert cache.restore("r", "k", {"f": tmp_path / "out.txt"}) is False
+    assert not (tmp_path / "out.txt").exists()
+    (cache.entry("r", "k") / "f").unlink()
+    cache.entry("r", "k").rmdir()
+    cache.store("r", "k", {"f": src}, {"rule": "r"})
+    src2 = tmp_path / "g.txt"
+    src2.write_text("y")
+    cache.store("r", "k", {"f": src2}, {"rule": "r"})  # the same key again: first entry stays
+    assert (cache.entry("r", "k") / "f").read_text() == "x"
+    assert json.loads((cache.entry("r", "k") / "entry.json").read_text())["key"] == "k"
+    assert not [p for p in cache.entry("r", "k").parent.iterdir() if p.name.startswith(".")]
+
+
+def test_directory_digest_and_stage_closure(tmp_path):
+    d = tmp_path / "hand"
+    (d / "meshes").mkdir(parents=True)
+    (d / "meshes" / "a.stl").write_bytes(b"1")
+    first = content_digest(d)
+    (d / "meshes" / "a.stl").write_bytes(b"2")
+    assert content_digest(d) != first
+    # learning imports labels, which imports replay and hand: a change there must reach the key
+    assert {"learning", "labels", "replay", "hand", "common"} <= set(stage_closure(["learning"]))
+    assert stage_closure(["objects"]) == ["common", "objects"]

@@ -1,0 +1,142 @@
+"""The SLURM profile: a dry run of the thesis profile through it (no SLURM binaries needed).
+
+Checks that the executor plugin is installed and accepts the profile, that the thesis DAG has the
+job counts its config implies, and that every per-rule request names a real rule and reaches the
+jobs with the value the profile's expression gives.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+import yaml
+
+from tests.conftest import CONFIG_DIR, REPO, SCHEMA
+
+PROFILE = REPO / "workflow" / "profiles" / "slurm"
+MODELS = 3  # cnn, gru, lstm (workflow/rules/train.smk)
+# Dry runs cap a job's threads at --cores (1 unless given); on the cluster nothing caps them.
+DRY_CORES = 8
+
+
+def _snakemake(workdir: Path, env: dict[str, str], *args: str) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir)]
+    return subprocess.run([*cmd, *args], capture_output=True, text=True, env=env, timeout=120)
+
+
+def _job_counts(text: str) -> dict[str, int]:
+    """The first "Job stats" table of a dry run: rule -> job count (and "total")."""
+    table = text.split("Job stats:", 1)[1]
+    counts = {}
+    for line in table.splitlines()[3:]:
+        m = re.match(r"^(\w+)\s+(\d+)$", line.strip())
+        if not m:
+            break
+        counts[m.group(1)] = int(m.group(2))
+    return counts
+
+
+def _jobs(text: str) -> list[dict]:
+    """Rule, wildcards, threads and resources of every job of a dry-run listing."""
+    jobs = []
+    for block in re.split(r"^(?=(?:local)?rule \w+:$)", text, flags=re.M)[1:]:
+        fields = dict(re.findall(r"^    (\w+): (.*)$", block, flags=re.M))
+        wildcards = fields.get("wildcards")
+        jobs.append({
+            "rule": re.match(r"(?:local)?rule (\w+):", block).group(1),
+            "wildcards": dict(w.split("=", 1) for w in wildcards.split(", ")) if wildcards else {},
+            "threads": int(fields.get("threads", 1)),
+            "resources": dict(r.split("=", 1) for r in fields.get("resources", "").split(", ")),
+        })  # fmt: skip
+    return jobs
+
+
+def _expected_counts() -> dict[str, int]:
+    """Per-rule job counts of the thesis DAG, from its resolved config."""
+    from graspstab.config import load_config
+
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "thesis"}, check_files=False)
+    objects = len(cfg["objects"]["items"]) if cfg["only_objects"] is None else len(
+        cfg["only_objects"]
+    )  # fmt: skip
+    shards = objects * cfg["synthesis"]["shards"]
+    sweep, splits = cfg["sweep"], cfg["splits"]
+    return {
+        "preprocess_object": objects,
+        "anneal_grasps": shards,
+        "replay_grasps": shards,
+        "trim_sweep_window": len(sweep["windows_s"]),
+        "train_model": MODELS * len(cfg["train"]["seeds"]),
+        "tune_model": MODELS,
+        "train_sweep_model": MODELS * len(sweep["windows_s"]) * len(sweep["seeds"]),
+        "train_split_model": splits["count"] * len(splits["seeds"]),  # one family (4.4)
+    }
+
+
+@pytest.fixture(scope="module")
+def profile() -> dict:
+    return yaml.safe_load((PROFILE / "config.yaml").read_text())
+
+
+@pytest.fixture(scope="module")
+def env(ycb_dir: Path, hand_assets_dir: Path) -> dict[str, str]:
+    return dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+
+
+@pytest.fixture(scope="module")
+def dry_run(tmp_path_factory, env) -> str:
+    """The thesis DAG through the SLURM profile (a dry run: nothing is submitted)."""
+    workdir = tmp_path_factory.mktemp("slurm_dry_run")
+    proc = _snakemake(
+        workdir, env, "--profile", str(PROFILE), "--dry-run", "--cores", str(DRY_CORES),
+        "--config", "profile=thesis",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return proc.stdout
+
+
+@pytest.mark.workflow
+def test_thesis_dry_run_job_counts(dry_run):
+    counts = _job_counts(dry_run)
+    for rule, n in _expected_counts().items():
+        assert counts.get(rule) == n, (rule, counts.get(rule), n)
+    assert counts["total"] == sum(v for k, v in counts.items() if k != "total")
+
+
+@pytest.mark.workflow
+def test_profile_rules_exist(profile, env, tmp_path):
+    proc = _snakemake(tmp_path, env, "--list-rules")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    rules = set(proc.stdout.split())
+    named = set(profile["set-resources"]) | set(profile["set-threads"])
+    assert named <= rules, f"profile names unknown rules: {sorted(named - rules)}"
+    assert profile["executor"] == "slurm"
+
+
+@pytest.mark.workflow
+def test_profile_requests_reach_jobs(profile, dry_run):
+    """Each job gets the profile's threads and the value of each of its resource expressions
+    (first attempt), and every threaded job asks SLURM for one CPU per thread."""
+    jobs = _jobs(dry_run)
+    for rule, requests in profile["set-resources"].items():
+        rule_jobs = [j for j in jobs if j["rule"] == rule]
+        assert rule_jobs, rule
+        for job in rule_jobs:
+            assert job["threads"] == min(profile["set-threads"].get(rule, 1), DRY_CORES), rule
+            names = {
+                "attempt": 1,
+                "threads": job["threads"],
+                "wildcards": SimpleNamespace(**job["wildcards"]),
+            }
+            for name, expr in requests.items():
+                value = eval(str(expr), names)  # the profile's own expression, as Snakemake does
+                assert job["resources"].get(name) == str(value), (rule, name, job)
+    for rule, threads in profile["set-threads"].items():
+        for job in (j for j in jobs if j["rule"] == rule):
+            assert job["resources"].get("cpus_per_task") == str(threads), (rule, job)
