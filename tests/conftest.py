@@ -80,3 +80,17 @@ def foam_brick_dir(ycb_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> P
         "061_foam_brick", ycb_dir / "061_foam_brick" / "textured.obj", out, 0.028, COARSE_PREPROCESS
     )
     return out
+
+
+@pytest.fixture(scope="session")
+def run(tmp_path_factory, ycb_dir, hand_assets_dir):
+    """The end-to-end toy run (tests/toy_workflow.py), shared by test_workflow and test_report:
+    (workdir, env, config)."""
+    from tests.toy_workflow import CONFIG, snakemake_run
+
+    workdir = tmp_path_factory.mktemp("wf")
+    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+    config = CONFIG
+    proc = snakemake_run(workdir, "results/report.html", *config, env=env)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    return workdir, env, config

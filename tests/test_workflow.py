@@ -13,46 +13,14 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import REPO
-
-OBJECT = "061_foam_brick"
-# One object per split (lemon moved to validation): the learning studies need all three. These
-# three yield held grasps at the toy settings below, so every split has windows.
-OBJECTS = "only_objects=[061_foam_brick,014_lemon,077_rubiks_cube]"
-SPLITS = "objects={items: {014_lemon: {split: val}}}"
-# Coarse CoACD settings keep the toy run fast; the defaults are exercised in the 12-object run.
-FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_resolution: 30}}"
-# Two shards of four grasps, a short schedule, batches of four (so batching is exercised).
-TOY_SYNTHESIS = (
-    "synthesis={shards: 2, grasps_per_shard: 4, annealing: {iterations: 1500, batch_size: 4}}"
+from tests.toy_workflow import (
+    OBJECT,
+    OBJECTS,
+    TOY_SYNTHESIS,
 )
-# Replays of 1 s in chunks of 0.25 s.
-TOY_REPLAY = "replay={steps: 2000, chunk_steps: 500}"
-# Every learning study at toy size: one seed, two epochs, one tuning trial, two sweep windows.
-TOY_LEARNING = [
-    "train={seeds: [42], max_epochs: 2, patience: 1}",
-    "tune={trials: 1}",
-    "sweep={windows_s: [0.01, 0.02], seeds: [42]}",
-    "splits={count: 2, seeds: [42]}",
-    "latency={repeats: 5, warmup: 1}",
-]
-CONFIG = ["--config", OBJECTS, SPLITS, FAST, TOY_SYNTHESIS, TOY_REPLAY, *TOY_LEARNING]
-
-
-def _snakemake(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
-    cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
-        "-s",
-        str(REPO / "Snakefile"),
-        "-d",
-        str(workdir),
-        "--cores",
-        "2",
-        *args,
-    ]
-    return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
-
+from tests.toy_workflow import (
+    snakemake_run as _snakemake,
+)
 
 JOB_FIELDS = ("output", "log", "benchmark", "wildcards")
 
@@ -82,16 +50,6 @@ def _with(config: list[str], old: str, new: str) -> list[str]:
     """The config list with one --config item replaced (--config keys do not merge)."""
     assert old in config
     return [new if item == old else item for item in config]
-
-
-@pytest.fixture(scope="module")
-def run(tmp_path_factory, ycb_dir, hand_assets_dir):
-    workdir = tmp_path_factory.mktemp("wf")
-    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    config = CONFIG
-    proc = _snakemake(workdir, "results/report.html", *config, env=env)
-    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
-    return workdir, env, config
 
 
 @pytest.mark.workflow
@@ -203,7 +161,7 @@ def test_report_is_self_contained(run):
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
     # objects, hand x2, pre-grasp, gallery, histograms, replay, window + 11 learning figures
-    assert len(images) == 8 + 11
+    assert len(images) == 8 + 11 + 1
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -1,27 +1,87 @@
-# The self-contained HTML report: every stage, from the objects to the learning studies (chapter 4).
+# The self-contained HTML report: every stage, from the objects to the learning studies (chapter 4),
+# with the pipeline's own rule graph and every rule's benchmark.
+
+import shlex
+import sys
+from glob import glob
+
+from snakemake.io import strip_wildcard_constraints
+
+from graspstab.report.inputs import benchmark_inputs, benchmark_wildcards, nested_config_args
+
+# DAG overview, option (a) of issue 7: the graph is Snakemake's own output for this very run
+# (--rulegraph for the edges, --dag for the jobs per rule), written by rule rulegraph and parsed by
+# graspstab.report.dag. A hand-made edge list (option b) would need a test to catch its drift and
+# would still be wrong in any run between a rule change and that test; this one cannot drift. The
+# nested Snakemake only prints graphs (it runs nothing), so --nolock is safe while this run holds
+# the lock, and --forceall makes it list every job, done or not. It gets this run's --config
+# overrides (common.smk keeps them as _raw_overrides), so it builds this run's DAG, and runs on the
+# interpreter running this workflow (sys.executable), the one sure to have this Snakemake, also
+# under --sdm conda. Moving the checkout changes these paths and so reruns rulegraph and report
+# (seconds), no more. The rule files are inputs: the graph is remade whenever one changes.
+NESTED_SNAKEMAKE = (
+    f"{shlex.quote(sys.executable)} -m snakemake -s {shlex.quote(workflow.main_snakefile)} "
+    "--nolock --forceall"
+)
+WORKFLOW_SOURCES = [
+    workflow.main_snakefile,
+    *sorted(glob(str(Path(workflow.basedir) / "workflow" / "rules" / "*.smk"))),
+]
+
+
+# Seconds of graph printing: on a cluster it runs beside Snakemake, not as a submitted job.
+localrules:
+    rulegraph,
+
+
+rule rulegraph:
+    input:
+        sources=WORKFLOW_SOURCES,
+    output:
+        rules="results/report/rulegraph.dot",
+        jobs="results/report/jobgraph.dot",
+    params:
+        snakemake=NESTED_SNAKEMAKE,
+        # a function: Snakemake would expand braces in a plain string param (e.g. "{model}" in a
+        # tune.storage URL) as wildcards
+        config=lambda wc: nested_config_args(_raw_overrides),
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/rulegraph/rulegraph.log",
+    benchmark:
+        "results/benchmarks/rulegraph/rulegraph.tsv"
+    shell:
+        "({params.snakemake} results/report.html --rulegraph {params.config} > {output.rules}.tmp"
+        " && {params.snakemake} results/report.html --dag {params.config} > {output.jobs}.tmp"
+        " && mv {output.rules}.tmp {output.rules} && mv {output.jobs}.tmp {output.jobs}) 2> {log}"
 
 
 rule report:
     input:
+        # every other rule's benchmark files (graspstab.report.inputs), evaluated only when the
+        # report is needed, so that targeting one stage does not need the studies' assignments
+        unpack(
+            lambda wc: benchmark_inputs(
+                [
+                    (r.name, strip_wildcard_constraints(str(r.benchmark)))
+                    for r in workflow.rules
+                    if r.benchmark is not None
+                ],
+                benchmark_wildcards(config, object_ids(), len(assignments()), MODELS),
+            )
+        ),
         objects_figure="results/figures/objects.png",
         hand_candidates="results/figures/hand_candidates.png",
         hand_capsules="results/figures/hand_capsules.png",
         hand_json="results/hand/hand.json",
         meta=object_outputs("meta.json"),
-        object_benchmarks=expand(
-            "results/benchmarks/preprocess_object/{object}.tsv", object=object_ids()
-        ),
         grasp_summaries=grasp_outputs("summary.json"),
-        anneal_benchmarks=expand(
-            "results/benchmarks/anneal_grasps/{object}_shard_{shard}.tsv",
-            object=object_ids(),
-            shard=range(config["synthesis"]["shards"]),
-        ),
-        replay_summaries=expand(
-            "results/replay/{object}/replays_{shard}.parquet",
-            object=object_ids(),
-            shard=range(config["synthesis"]["shards"]),
-        ),
+        replay_summaries=replay_outputs("replays"),
         replay_trace=rules.plot_replay.output[0],
         dataset_summary=rules.label_windows.output.summary,
         window_figure=rules.plot_window.output[0],
@@ -31,6 +91,8 @@ rule report:
         histograms=rules.plot_grasps.output.histograms,
         studies=rules.studies.input,
         learning_figures=rules.plot_learning.output,
+        rulegraph=rules.rulegraph.output.rules,
+        jobgraph=rules.rulegraph.output.jobs,
     output:
         "results/report.html",
     params:

@@ -7,6 +7,12 @@ from graspstab.report.write_report import write_report
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 setup_logging(sm.log[0])
+PREFIX = "benchmark_"
+benchmarks = {
+    name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
+    for name, files in sm.input.items()
+    if name.startswith(PREFIX)
+}
 write_report(
     out_html=Path(sm.output[0]),
     config=dict(sm.params.config),
@@ -22,12 +28,15 @@ write_report(
     },
     object_meta=[Path(p) for p in sm.input.meta],
     hand_json=Path(sm.input.hand_json),
-    benchmark_files=[Path(p) for p in sm.input.object_benchmarks],
+    benchmark_files=benchmarks.get("preprocess_object", []),
     grasp_summaries=[Path(p) for p in sm.input.grasp_summaries],
-    anneal_benchmarks=[Path(p) for p in sm.input.anneal_benchmarks],
+    anneal_benchmarks=benchmarks.get("anneal_grasps", []),
     replay_summaries=[Path(p) for p in sm.input.replay_summaries],
     dataset_summary=Path(sm.input.dataset_summary),
     sweep_summaries=[Path(p) for p in sm.input.sweep_summaries],
     learning_results=Path("results"),
     learning_figures={Path(p).stem: Path(p) for p in sm.input.learning_figures},
+    rule_benchmarks=benchmarks,
+    rulegraph=Path(sm.input.rulegraph),
+    jobgraph=Path(sm.input.jobgraph),
 )

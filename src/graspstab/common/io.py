@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import tempfile
 from collections.abc import Iterator
@@ -43,10 +44,30 @@ def _json_default(obj: Any) -> Any:
     raise TypeError(f"cannot serialise {type(obj).__name__} to JSON")
 
 
+def _strict(obj: Any) -> Any:
+    """``obj`` with numpy values made plain and NaN/inf replaced by None: JSON has no NaN, and
+    strict parsers (browsers, jq, other languages) reject the bare ``NaN`` token."""
+    if isinstance(obj, dict):
+        return {k: _strict(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_strict(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _strict(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
 def write_json(path: str | os.PathLike[str], data: Any) -> None:
-    """Write ``data`` as indented JSON atomically (numpy values become plain numbers)."""
+    """Write ``data`` as indented, strict JSON atomically: numpy values become plain numbers and
+    an undefined value (NaN, inf) becomes null, so readers must treat None as undefined."""
+    text = json.dumps(
+        _strict(data), indent=2, sort_keys=True, default=_json_default, allow_nan=False
+    )
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2, sort_keys=True, default=_json_default) + "\n")
+        tmp.write_text(text + "\n")
 
 
 def read_json(path: str | os.PathLike[str]) -> Any:

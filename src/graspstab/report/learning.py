@@ -66,6 +66,7 @@ REFERENCE_SWEEP_F1 = {"cnn": "84.2-86.1 %", "gru": "85.4-85.9 %", "lstm": "85.0-
 
 
 def finite(value: Any) -> bool:
+    """True for a real, finite number: None (strict JSON's undefined) and NaN are not."""
     try:
         return value is not None and math.isfinite(float(value))
     except (TypeError, ValueError):
@@ -113,11 +114,29 @@ def _read(path: Path, reader: Callable[[Path], Any]) -> Any:
     return reader(path) if path.exists() else None
 
 
+# Stable ids (and contents entries, where the figure is one of the reference's) of the figures.
+FIGURE_ANCHORS = {
+    "benchmark": ("metrics", "Metrics, mean ± std (fig. 4.1)"),
+    "confusion": ("confusion", "Confusion matrices (fig. 4.2)"),
+    "objects": ("per-object", "Per-object test metrics (fig. 4.3)"),
+    "tuning": ("tuning-history", ""),
+    "splits": ("split-robustness-figure", ""),
+    "sweep": ("sweep-figure", ""),
+    "latency": ("latency-figure", ""),
+    "operating_points": ("operating-points-figure", ""),
+    "threshold_transfer": ("threshold-transfer", "Threshold transfer (fig. 4.8)"),
+    "reliability": ("reliability", "Reliability (fig. 4.9)"),
+    "proxy": ("proxy-figure", ""),
+}
+
+
 def _figure(figures: Mapping[str, Path], key: str, caption: str) -> list[str]:
+    """The figure ``key`` with its stable id; a slot saying it is missing when it is."""
+    anchor, toc = FIGURE_ANCHORS.get(key, (key.replace("_", "-"), ""))
     path = figures.get(key)
     if path is None or not Path(path).exists():
-        return []
-    return [H.image(Path(path), key.replace("_", " "), caption)]
+        return [H.missing_figure(anchor, toc, f"Figure '{H.esc(key)}' not produced in this run.")]
+    return [H.image(Path(path), key.replace("_", " "), caption, anchor, toc)]
 
 
 def _rows_by(frame: pl.DataFrame, keys: Sequence[str]) -> dict[tuple, dict[str, Any]]:
@@ -553,14 +572,20 @@ CAPTIONS = {
 
 
 def _block(
-    title: str, path: Path, reader: Callable[[Path], Any], render: Callable[[Any], str | list[str]]
+    title: str,
+    path: Path,
+    reader: Callable[[Path], Any],
+    render: Callable[[Any], str | list[str]],
+    anchor: str = "",
 ) -> list[str]:
-    """A sub-heading and the rendering of one artefact (or a note that it is missing)."""
+    """A sub-heading (with a stable id) and the rendering of one artefact (or a note that it is
+    missing)."""
+    head = H.heading(3, anchor, title) if anchor else f"<h3>{H.esc(title)}</h3>"
     data = _read(path, reader)
     if data is None:
-        return [f"<h3>{H.esc(title)}</h3>", missing(path)]
+        return [head, missing(path)]
     out = render(data)
-    return [f"<h3>{H.esc(title)}</h3>", *([out] if isinstance(out, str) else out)]
+    return [head, *([out] if isinstance(out, str) else out)]
 
 
 def _runs(studies: Path) -> dict[str, pl.DataFrame]:
@@ -577,43 +602,111 @@ def _intro(config: Mapping[str, Any]) -> str:
     )
 
 
-def _baseline_parts(studies: Path, figures: Mapping[str, Path]) -> list[str]:
+def search_space_table(tune: Mapping[str, Any]) -> str:
+    """Table 4.1 as this run searched it: every parameter's group, values or range."""
+    space = tune.get("space", {})
+    groups = {"common": "all families", "cnn": "CNN", "recurrent": "GRU and LSTM"}
+    rows = []
+    for group, params in space.items():
+        for name, spec in (params or {}).items():
+            if isinstance(spec, Mapping):
+                scale = ", log scale" if spec.get("log") else ""
+                values = f"[{_param(spec.get('low'))}, {_param(spec.get('high'))}]{scale}"
+            else:
+                values = ", ".join(_param(v) for v in spec)
+            rows.append([groups.get(group, group), name, values])
+    if not rows:
+        return note("No tuning search space in this run's configuration.")
+    return H.table(
+        ["searched for", "parameter", "values (list) or range"],
+        rows,
+        caption=f"Optuna search space (table 4.1; the thesis names the groups, not the ranges): "
+        f"{tune.get('trials', '?')} trials per family at a {tune.get('window_s', '?')} s window, "
+        f"objective validation {tune.get('objective', '?')}",
+        cls="text",
+    )
+
+
+ARCHITECTURE_KEYS = {
+    "cnn": ("base_channels", "kernel_sizes"),
+    "gru": ("hidden_size", "num_layers", "bidirectional", "pooling"),
+    "lstm": ("hidden_size", "num_layers", "bidirectional", "pooling"),
+}
+REFERENCE_CONFIGS = {  # table 4.2, architecture settings
+    "cnn": "base channels 64",
+    "gru": "hidden 128, 2 layers, unidirectional, mean pooling",
+    "lstm": "hidden 64, 1 layer, unidirectional, mean pooling",
+}
+
+
+def configurations_table(config: Mapping[str, Any]) -> str:
+    """Table 4.2's settings as configured in this run, beside the reference's."""
+    models, train = config.get("model", {}), config.get("train", {})
+    rows = []
+    for f in ordered_families(models):
+        spec = models[f]
+        arch = ", ".join(f"{k} {spec[k]}" for k in ARCHITECTURE_KEYS.get(f, ()) if k in spec)
+        rows.append([
+            fam(f), arch, REFERENCE_CONFIGS.get(f, "—"),
+            f"dropout {spec.get('dropout', '?')}, learning rate {spec.get('learning_rate', '?')}",
+        ])  # fmt: skip
+    if not rows:
+        return note("No model configuration in this run's configuration.")
+    shared = ", ".join(
+        f"{k.replace('_', ' ')} {train[k]}"
+        for k in ("batch_size", "weight_decay", "patience", "max_epochs")
+        if k in train
+    )
+    return H.table(
+        ["model", "architecture (ours)", "architecture (thesis)", "training (ours)"],
+        rows,
+        caption=f"Baseline configurations (table 4.2); shared training settings: {shared}. "
+        "The thesis trains every baseline with dropout 0.2, batch 256, weight decay 1e-4, "
+        "patience 10 and learning rate 1e-3 (LSTM 5e-4).",
+        cls="text",
+    )
+
+
+def _tuning_parts(results: Path, figures: Mapping[str, Path], config: Mapping) -> list[str]:
+    tune = results / "tune"
+    bests = {p.parent.name: read_json(p) for p in sorted(tune.glob("*/best.json"))}
+    return [
+        H.heading(3, "tuning", "Tuning: search space and results (table 4.1)"),
+        search_space_table(config.get("tune", {})),
+        tuning_tables(bests) if bests else missing(tune / "<model>" / "best.json"),
+        *_figure(figures, "tuning", CAPTIONS["tuning"]),
+    ]
+
+
+def _baseline_parts(studies: Path, figures: Mapping[str, Path], config: Mapping) -> list[str]:
     base = studies / "baseline"
     overview = base / "summary.json"
     if not overview.exists() and (base / "overview.json").exists():
         overview = base / "overview.json"
     return [
+        H.heading(3, "baseline-configurations", "Baseline configurations (table 4.2)"),
+        configurations_table(config),
         *_block("Parameters (table 4.2)", overview, read_json, parameters_table),
         *_block(
             "Fixed-task benchmark (section 4.3)",
             base / "runs.parquet",
             lambda p: defined_summary(pl.read_parquet(p), ["family", "split"]),
-            lambda s: [baseline_table(s), *_figure(figures, "benchmark", CAPTIONS["benchmark"])],
+            lambda s: [baseline_table(s)],
+            anchor="baseline-benchmark",
         ),
+        *_figure(figures, "benchmark", CAPTIONS["benchmark"]),
         *_figure(figures, "confusion", CAPTIONS["confusion"]),
         *_figure(figures, "objects", CAPTIONS["objects"]),
-        *_block("Errors (table 4.3)", base / "errors.parquet", pl.read_parquet, errors_table),
     ]
 
 
 def _threshold_parts(studies: Path) -> list[str]:
+    head = H.heading(3, "threshold-rules", "Threshold rules")
     runs = _runs(studies)
     if not runs:
-        return ["<h3>Threshold rules</h3>", missing(studies / "baseline" / "runs.parquet")]
+        return [head, missing(studies / "baseline" / "runs.parquet")]
     table, problems = rule_counts(runs)
-    return ["<h3>Threshold rules</h3>", rule_warning(problems), table]
-
-
-def _tuning_parts(results: Path, figures: Mapping[str, Path]) -> list[str]:
-    tune = results / "tune"
-    bests = {p.parent.name: read_json(p) for p in sorted(tune.glob("*/best.json"))}
-    if not bests:
-        return ["<h3>Tuning (Optuna)</h3>", missing(tune / "<model>" / "best.json")]
-    return [
-        "<h3>Tuning (Optuna)</h3>",
-        tuning_tables(bests),
-        *_figure(figures, "tuning", CAPTIONS["tuning"]),
-    ]
+    return [head, rule_warning(problems), table]
 
 
 def _sweep_parts(studies: Path, figures: Mapping[str, Path]) -> list[str]:
@@ -621,53 +714,68 @@ def _sweep_parts(studies: Path, figures: Mapping[str, Path]) -> list[str]:
     overview = _read(sweep / "summary.json", read_json) or {}
     return [
         *_block(
-            "Window-length sweep (section 4.5)",
+            "Window-length sweep (section 4.5, fig. 4.5)",
             sweep / "runs.parquet",
             lambda p: defined_summary(pl.read_parquet(p), ["family", "window_s", "split"]),
-            lambda s: [sweep_table(s), *_figure(figures, "sweep", CAPTIONS["sweep"])],
+            sweep_table,
+            anchor="sweep",
         ),
+        *_figure(figures, "sweep", CAPTIONS["sweep"]),
         *_block(
-            "Operating points",
-            sweep / "operating_points.parquet",
-            pl.read_parquet,
-            lambda p: [
-                choice_text(overview),
-                operating_points_table(p, overview),
-                *_figure(figures, "operating_points", CAPTIONS["operating_points"]),
-            ],
-        ),
-        *_block(
-            "Inference latency",
+            "Inference latency (fig. 4.6)",
             studies / "latency.parquet",
             pl.read_parquet,
-            lambda t: [latency_table(t), *_figure(figures, "latency", CAPTIONS["latency"])],
+            latency_table,
+            anchor="latency",
         ),
+        *_figure(figures, "latency", CAPTIONS["latency"]),
+        *_block(
+            "AUPRC against decision latency (fig. 4.7)",
+            sweep / "operating_points.parquet",
+            pl.read_parquet,
+            lambda p: [choice_text(overview), operating_points_table(p, overview)],
+            anchor="operating-points",
+        ),
+        *_figure(figures, "operating_points", CAPTIONS["operating_points"]),
     ]
 
 
 def _splits_parts(studies: Path, figures: Mapping[str, Path]) -> list[str]:
     runs = _read(studies / "splits" / "runs.parquet", pl.read_parquet)
     family = runs["family"][0] if runs is not None and runs.height else None
-    return _block(
-        "Split robustness (section 4.4)",
-        studies / "splits" / "summary.json",
-        read_json,
-        lambda s: [splits_tables(s, family), *_figure(figures, "splits", CAPTIONS["splits"])],
-    )
+    return [
+        *_block(
+            "Split robustness (section 4.4)",
+            studies / "splits" / "summary.json",
+            read_json,
+            lambda s: splits_tables(s, family),
+            anchor="split-robustness",
+        ),
+        *_figure(figures, "splits", CAPTIONS["splits"]),
+    ]
 
 
 def _diagnostic_parts(studies: Path, figures: Mapping[str, Path]) -> list[str]:
     summary = _read(studies / "baseline" / "summary.parquet", pl.read_parquet)
     return [
-        "<h3>Threshold transfer and calibration (section 4.6)</h3>",
+        *_block(
+            "Errors (section 4.6, table 4.3)",
+            studies / "baseline" / "errors.parquet",
+            pl.read_parquet,
+            errors_table,
+            anchor="errors",
+        ),
+        H.heading(3, "calibration", "Threshold transfer and calibration (section 4.6)"),
         *_figure(figures, "threshold_transfer", CAPTIONS["threshold_transfer"]),
         *_figure(figures, "reliability", CAPTIONS["reliability"]),
         *_block(
-            "Friction-ratio proxy (section 4.7)",
+            "Friction-ratio proxy (section 4.7, fig. 4.10)",
             studies / "proxy.json",
             read_json,
-            lambda p: [proxy_table(p, summary), *_figure(figures, "proxy", CAPTIONS["proxy"])],
+            lambda p: proxy_table(p, summary),
+            anchor="proxy",
         ),
+        *_figure(figures, "proxy", CAPTIONS["proxy"]),
     ]
 
 
@@ -677,14 +785,15 @@ def learning_section(results_dir: Path, figures: dict[str, Path], config: dict) 
     (``figures``: name -> PNG; absent names are skipped)."""
     results = Path(results_dir)
     studies = results / "studies"
+    # The reference's order: tuning (table 4.1), baselines (table 4.2), 4.3, 4.4, 4.5, 4.6, 4.7.
     parts = [
-        "<h2>Learning and evaluation (chapter 4)</h2>",
+        H.heading(2, "learning", "Learning and evaluation (chapter 4)"),
         _intro(config),
         *_threshold_parts(studies),
-        *_baseline_parts(studies, figures),
-        *_tuning_parts(results, figures),
-        *_sweep_parts(studies, figures),
+        *_tuning_parts(results, figures, config),
+        *_baseline_parts(studies, figures, config),
         *_splits_parts(studies, figures),
+        *_sweep_parts(studies, figures),
         *_diagnostic_parts(studies, figures),
     ]
     return "\n".join(p for p in parts if p)

@@ -4,20 +4,46 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import networkx as nx
 import polars as pl
 
 import graspstab
 from graspstab.common.io import read_json, write_text
 from graspstab.common.provenance import stable_hash
+from graspstab.report import dag
 from graspstab.report import html as H
-from graspstab.report.learning import learning_section
-from graspstab.report.provenance import git_commit, package_versions, read_benchmark
+from graspstab.report.funnel import funnel
+from graspstab.report.headline import headline_section, run_scale
+from graspstab.report.learning import UNDEFINED, finite, learning_section
+from graspstab.report.provenance import (
+    git_commit,
+    package_versions,
+    read_benchmark,
+    stage_times,
+)
 
 log = logging.getLogger(__name__)
 REPO_DIR = Path(graspstab.__file__).resolve().parents[2]
+
+# Every id a reader (or a link) may rely on, in the reference's order (tested to be present).
+SECTION_IDS = (
+    "contents", "headline", "pipeline", "objects", "hand", "hand-candidates", "hand-capsules",
+    "synthesis", "pregrasp", "grasp-gallery", "replay", "replay-trace", "datasets", "window",
+    "dataset-counts", "learning", "tuning", "baseline-configurations", "metrics", "confusion",
+    "per-object", "split-robustness", "sweep", "latency", "operating-points", "errors",
+    "threshold-transfer", "reliability", "proxy", "provenance", "stage-times", "funnel",
+    "configuration",
+)  # fmt: skip
+
+
+def _fmt(value: Any, spec: str = ".1f", scale: float = 1.0) -> str:
+    """A number formatted by ``spec`` (times ``scale``), or "undefined" for None/NaN (strict
+    JSON stores an undefined value as null)."""
+    return format(float(value) * scale, spec) if finite(value) else UNDEFINED
 
 
 def _objects_section(config: dict[str, Any], metas: list[dict], bench: dict[str, dict]) -> str:
@@ -83,18 +109,18 @@ def _synthesis_section(summaries: list[dict], anneal_bench: dict[str, dict]) -> 
             [
                 oid,
                 s["grasps"],
-                f"{s['energy_start']['q50']:.1f}",
-                f"{s['energy']['q50']:.1f}",
-                f"{s['energy_fell_fraction']:.2f}",
-                f"{s['terms']['dis']['q50'] * 1000 / 120:.1f}",
-                f"{s['tip_abs_dist']['q50'] * 1000:.1f}",
-                f"{s['tips_within_5mm_mean']:.1f}",
-                f"{s['min_candidate_dist']['q50'] * 1000:.1f} / "
-                f"{s['min_candidate_dist']['q05'] * 1000:.1f}",
-                f"{s['max_hand_depth']['q50'] * 1000:.1f} / "
-                f"{s['max_hand_depth']['q95'] * 1000:.1f}",
-                f"{s['terms']['pen']['q50']:.3f}",
-                f"{s['acceptance_rate']['q50']:.2f}",
+                _fmt(s["energy_start"]["q50"]),
+                _fmt(s["energy"]["q50"]),
+                _fmt(s["energy_fell_fraction"], ".2f"),
+                _fmt(s["terms"]["dis"]["q50"], ".1f", 1000 / 120),
+                _fmt(s["tip_abs_dist"]["q50"], ".1f", 1000),
+                _fmt(s["tips_within_5mm_mean"]),
+                f"{_fmt(s['min_candidate_dist']['q50'], '.1f', 1000)} / "
+                f"{_fmt(s['min_candidate_dist']['q05'], '.1f', 1000)}",
+                f"{_fmt(s['max_hand_depth']['q50'], '.1f', 1000)} / "
+                f"{_fmt(s['max_hand_depth']['q95'], '.1f', 1000)}",
+                _fmt(s["terms"]["pen"]["q50"], ".3f"),
+                _fmt(s["acceptance_rate"]["q50"], ".2f"),
                 f"{wall:.0f}" if wall else "n/a",
             ]
         )
@@ -135,7 +161,7 @@ def _synthesis_parts(
         return []
     bench = {Path(p).stem: read_benchmark(p) for p in anneal_benchmarks or []}
     parts = [
-        "<h2>Grasp synthesis</h2>",
+        H.heading(2, "synthesis", "Grasp synthesis"),
         _synthesis_section([read_json(p) for p in grasp_summaries], bench),
         '<p class="note">Two deliberate deviations from eq. 16 (README, "Grasp synthesis"): with '
         "the reference's energy the annealed grasps straddle the surface, fingertips within a "
@@ -145,14 +171,21 @@ def _synthesis_parts(
         "surface points inside the object, weight 10,000).</p>",
     ]
     captions = {
-        "pregrasp": "A structured pre-grasp: inflated hull, anchor, nearest surface point, "
-        "approach direction and the open hand (cf. thesis fig. 3.4).",
-        "grasp_gallery": "Lowest-energy synthesised grasps on several objects (cf. fig. 3.6).",
-        "energy_histograms": "Energy of eq. 4 per object, at the pre-grasp and after annealing.",
-    }
-    for key, caption in captions.items():
-        if key in figures:
-            parts.append(H.image(figures[key], key.replace("_", " "), caption))
+        "pregrasp": ("Pre-grasp (fig. 3.4)", "A structured pre-grasp: inflated hull, anchor, "
+                     "nearest surface point, approach direction and the open hand (cf. thesis "
+                     "fig. 3.4)."),
+        "grasp_gallery": ("Grasp gallery (fig. 3.6)", "Lowest-energy synthesised grasps on "
+                          "several objects (cf. fig. 3.6)."),
+        "energy_histograms": ("", "Energy of eq. 4 per object, at the pre-grasp and after "
+                              "annealing."),
+    }  # fmt: skip
+    for key, (toc, caption) in captions.items():
+        anchor = key.replace("_", "-")
+        parts.append(
+            H.image(figures[key], key.replace("_", " "), caption, anchor, toc)
+            if key in figures
+            else H.missing_figure(anchor, toc, f"Figure '{key}' not produced in this run.")
+        )
     return parts
 
 
@@ -170,36 +203,30 @@ def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path])
                 int(g["held_at_end"].sum()),
                 int((g["stop_reason"] == "contact_lost").sum()),
                 int(g["diverged"].sum()),
-                f"{g['max_penetration'].median() * 1000:.1f}",
+                _fmt(g["max_penetration"].median(), ".1f", 1000),
                 f"{g['duration_s'].sum():.0f}",
                 f"{g['wall_s'].sum():.0f}",
             ]
         )
     return [
-        "<h2>Grasp replay</h2>",
+        H.heading(2, "replay", "Grasp replay"),
         H.table(
             [
                 "object", "replays", "held to the end", "contact lost (stopped early)",
                 "diverged", "median deepest contact [mm]", "simulated [s]", "wall [s]",
             ],
             rows,
-            caption=(
-                "Replays under gravity (3.2). Solver settings and actuator gains are provisional "
-                "(issue 4 in progress): these counts are not yet the dataset's."
-            ),
+            caption="Replays under gravity (3.2), per object",
         ),  # fmt: skip
-        *(
-            [
-                H.image(
-                    figures["replay_trace"],
-                    "replay trace",
-                    "One replay: object motion, d_t and fingertip forces (cf. thesis fig. 3.7; "
-                    "the stable/unstable shading comes with the labelling stage).",
-                )
-            ]
-            if "replay_trace" in figures
-            else []
-        ),
+        H.image(
+            figures["replay_trace"],
+            "replay trace",
+            "One replay: object motion, d_t and fingertip forces (cf. thesis fig. 3.7).",
+            "replay-trace",
+            "Replay trace (fig. 3.7)",
+        )
+        if "replay_trace" in figures
+        else H.missing_figure("replay-trace", "Replay trace (fig. 3.7)", "Not produced."),
     ]
 
 
@@ -218,8 +245,18 @@ def _dataset_parts(
 
     rows = [row("all objects", base["splits"])]
     rows += [row(o, c) for o, c in base["objects"].items()]
+    window = (
+        H.image(figures["window"], "window illustration", (
+            "One sample's observation window, offset and horizon (dashed) on its replay's "
+            "fingertip forces, with stable (green) and unstable (red) periods (cf. fig. 3.8)."),
+            "window", "Window (fig. 3.8)")
+        if "window" in figures
+        else H.missing_figure("window", "Window (fig. 3.8)", "Not produced in this run.")
+    )  # fmt: skip
     parts = [
-        "<h2>Window datasets</h2>",
+        H.heading(2, "datasets", "Window datasets"),
+        window,
+        H.heading(3, "dataset-counts", "Dataset counts (section 4.1.1)"),
         H.table(head, rows, caption=(
             f"Baseline dataset ({base['window_s']:g} s windows, 3.3): labelled windows per split "
             "and class (cf. section 4.1.1)")),
@@ -232,11 +269,121 @@ def _dataset_parts(
               *[d["splits"][s]["unstable"] for s in ("train", "val", "test")]] for d in sums],
             caption="Sweep datasets, trimmed from the longest window (same end, label, split)",
         ))  # fmt: skip
-    if "window" in figures:
-        parts.append(H.image(figures["window"], "window illustration", (
-            "One sample's observation window, offset and horizon (dashed) on its replay's "
-            "fingertip forces, with stable (green) and unstable (red) periods (cf. fig. 3.8).")))
     return parts
+
+
+def _pipeline_parts(
+    graph: nx.DiGraph | None, counts: Mapping[str, int] | None, dpi: int
+) -> list[str]:
+    """The DAG overview: Snakemake's rule graph drawn with each rule's job count."""
+    head = H.heading(2, "pipeline", "Pipeline and DAG overview")
+    if graph is None or counts is None:
+        return [head, '<p class="note">No rule graph given to the report.</p>']
+    return [
+        head,
+        f"<p>{H.esc(dag.overview_text(graph, counts))}</p>",
+        H.image(
+            dag.draw_rule_graph(graph, counts, dpi),
+            "rule graph",
+            "Rule graph of this run (snakemake --rulegraph), top to bottom, with each rule's job "
+            "count (snakemake --dag); orange: rules that fan out into several jobs. Edges implied "
+            "by a longer path are omitted.",
+            "rule-graph",
+        ),
+    ]
+
+
+def _stage_table(rows: Sequence[Mapping[str, Any]], own_rule: str = "report") -> str:
+    """Per-rule wall times and peak memory from the benchmark files (``own_rule``, the rule
+    writing this report, cannot have its benchmark yet)."""
+    total = sum(r["job_s"] or 0.0 for r in rows)
+    body = []
+    for r in rows:
+        unbenchmarked = "runs now: benchmark after this report" if r["rule"] == own_rule else (
+            "no benchmark file")
+        jobs = str(r["jobs"])
+        if r["dag_jobs"] is not None and r["dag_jobs"] != r["jobs"]:
+            jobs += f" (DAG: {r['dag_jobs']})"
+        if r["missing"]:
+            jobs += f" ({r['missing']} benchmark files missing)"
+        bench = r["job_s"] is not None
+        body.append([
+            r["rule"], jobs,
+            f"{r['job_s']:.1f}" if bench else unbenchmarked,
+            _fmt(r["share"], ".1%") if bench else "—",
+            f"{r['max_s']:.1f} ({r['max_job']})" if r["max_s"] is not None else "—",
+            _fmt(r["peak_rss_mb"], ".0f") if bench else "—",
+        ])  # fmt: skip
+    jobs, dag_jobs = sum(r["jobs"] for r in rows), sum(r["dag_jobs"] or 0 for r in rows)
+    all_jobs = f"{jobs} (DAG: {dag_jobs})" if dag_jobs and dag_jobs != jobs else str(jobs)
+    body.append(["all rules", all_jobs, f"{total:.1f}", "100%", "", ""])
+    return H.table(
+        ["rule", "jobs", "total job-seconds", "share", "longest job [s]", "peak RSS [MB]"],
+        body,
+        caption="Per-stage wall time from every rule's Snakemake benchmark files: job-seconds sum "
+        "the jobs' wall times (with several cores the run's elapsed time is shorter); peak RSS is "
+        "the largest over the rule's jobs; 'DAG' is the job count in this run's DAG when it "
+        "differs from the benchmarked jobs",
+    )
+
+
+def _funnel_table(rows: Sequence[Mapping[str, Any]]) -> str:
+    """Candidate grasps through each stage, per object and in total."""
+
+    def cell(v: Any) -> str:
+        return UNDEFINED if v is None else f"{v:,}"
+
+    def rate(a: Any, b: Any) -> str:
+        return f"{a / b:.0%}" if a is not None and b else "—"
+
+    body = [
+        [r["object"], cell(r["annealed"]), cell(r["replayed"]), cell(r["diverged"]),
+         cell(r["held"]), cell(r["usable"]), rate(r["usable"], r["replayed"]),
+         cell(r["windows"]), cell(r["unstable"])]
+        for r in rows
+    ]  # fmt: skip
+    return H.table(
+        ["object", "annealed", "replayed", "diverged", "held to the end", "usable",
+         "usable / replayed", "windows", "unstable windows"],
+        body,
+        caption="Grasp funnel: candidate grasps annealed (3.1.4) → replayed (3.2; diverged "
+        "replays are dropped) → usable (at least one labelled window in the baseline dataset, "
+        "3.3; the labelling stage keeps no per-grasp usable interval, so an interval too short "
+        "for one window also counts as not usable) → labelled windows",
+    )  # fmt: skip
+
+
+def _provenance_parts(
+    config: Mapping[str, Any],
+    benchmarks: Mapping[str, Sequence[Path]],
+    graph: nx.DiGraph | None,
+    counts: Mapping[str, int] | None,
+    funnel_rows: Sequence[Mapping[str, Any]],
+) -> list[str]:
+    """Config hash, commit, versions, stage times, the grasp funnel and the resolved config."""
+    order = list(nx.topological_sort(graph)) if graph is not None else None
+    return [
+        H.heading(2, "provenance", "Provenance"),
+        H.table(
+            ["item", "value"],
+            [
+                ["config hash", stable_hash(dict(config))],
+                ["git commit", git_commit(REPO_DIR)],
+                *[[f"package {k}", v] for k, v in package_versions().items()],
+            ],
+            caption="Run provenance",
+        ),
+        H.heading(3, "stage-times", "Stage wall times and memory"),
+        _stage_table(stage_times(benchmarks, counts, order))
+        if benchmarks or counts
+        else '<p class="note">No benchmark files given to the report.</p>',
+        H.heading(3, "funnel", "Grasp funnel"),
+        _funnel_table(funnel_rows),
+        H.heading(3, "configuration", "Resolved configuration"),
+        "<details><summary>Resolved configuration (JSON)</summary><pre>"
+        + H.esc(json.dumps(config, indent=2, sort_keys=True))
+        + "</pre></details>",
+    ]
 
 
 def write_report(
@@ -253,59 +400,66 @@ def write_report(
     sweep_summaries: list[Path] | None = None,
     learning_results: Path | None = None,
     learning_figures: dict[str, Path] | None = None,
+    rule_benchmarks: Mapping[str, Sequence[Path]] | None = None,
+    rulegraph: Path | None = None,
+    jobgraph: Path | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced (the learning section from
-    ``learning_results``, the results directory, when given)."""
+    ``learning_results``, the results directory, when given). ``benchmark_files`` are the
+    preprocessing benchmarks, ``rule_benchmarks`` every rule's (rule -> files), ``rulegraph``
+    and ``jobgraph`` Snakemake's ``--rulegraph`` and ``--dag`` dot files."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
-    cfg_hash = stable_hash(config)
-    profile = config["profile_name"]
+    summaries = [read_json(p) for p in grasp_summaries or []]
+    dataset = read_json(dataset_summary) if dataset_summary is not None else None
+    results = Path(learning_results) if learning_results is not None else None
+    graph = counts = None
+    if rulegraph is not None and jobgraph is not None:
+        graph, counts = dag.read_graph(rulegraph, jobgraph)
+    dpi = int(config.get("report", {}).get("figure_dpi", 110))
     sections = [
-        f'<p class="note">Profile <b>{H.esc(profile)}</b>, {len(metas)} objects. This report '
-        "covers every stage: objects, hand, grasp synthesis, replay, window datasets and the "
-        "learning studies. A quick-profile run is a smoke test of the pipeline, not a "
-        "reproduction of the reference's numbers.</p>",
-        "<h2>Objects</h2>",
+        H.heading(2, "headline", "Headline: this run and the reference"),
+        headline_section(
+            run_scale(config, len(metas), summaries, dataset),
+            results / "studies" if results is not None else None,
+        ),
+        *_pipeline_parts(graph, counts, dpi),
+        H.heading(2, "objects", "Objects"),
         _objects_section(config, metas, bench),
         H.image(
             figures["objects"],
             "preprocessed objects",
             "Preprocessed objects with their CoACD convex parts (cf. thesis fig. 3.1).",
+            "objects-figure",
         ),
-        "<h2>Hand and contact candidates</h2>",
+        H.heading(2, "hand", "Hand and contact candidates"),
         _hand_section(hand),
         H.image(
             figures["hand_candidates"],
             "hand with contact candidates",
             "ORCA hand with its 120 contact candidates (cf. thesis fig. 3.3).",
+            "hand-candidates",
+            "Contact candidates (fig. 3.3)",
         ),
         H.image(
             figures["hand_capsules"],
             "capsule approximation",
             "Capsule and box approximation used by the penetration energies (cf. fig. 3.5a).",
+            "hand-capsules",
+            "Capsule approximation (fig. 3.5a)",
         ),
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         *_replay_parts(replay_summaries, figures),
         *_dataset_parts(dataset_summary, sweep_summaries, figures),
-        *(
-            [learning_section(learning_results, learning_figures or {}, config)]
-            if learning_results is not None
-            else []
+        *([learning_section(results, learning_figures or {}, config)] if results else []),
+        *_provenance_parts(
+            config,
+            rule_benchmarks or {"preprocess_object": benchmark_files},
+            graph,
+            counts,
+            funnel(summaries, replay_summaries or [], dataset),
         ),
-        "<h2>Provenance</h2>",
-        H.table(
-            ["item", "value"],
-            [
-                ["config hash", cfg_hash],
-                ["git commit", git_commit(REPO_DIR)],
-                *[[f"package {k}", v] for k, v in package_versions().items()],
-            ],
-            caption="Run provenance",
-        ),
-        "<details><summary>Resolved configuration</summary><pre>"
-        + H.esc(json.dumps(config, indent=2, sort_keys=True))
-        + "</pre></details>",
     ]
-    write_text(out_html, H.page(config["report"]["title"], sections))
+    write_text(out_html, H.page(config["report"]["title"], sections, contents=True))
     log.info("wrote %s (%d objects)", out_html, len(metas))

@@ -1,0 +1,226 @@
+"""The report's headline: this run's scale in one sentence and its key figures beside the
+reference's published ones (thesis 4.3, 4.4, 4.5, 4.7), so a reader sees at once how far a run is
+from a reproduction. An undefined value prints as "undefined" with its reason, never as 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from graspstab.common.io import read_json
+from graspstab.learning.figures import defined_summary
+from graspstab.report import html as H
+from graspstab.report.learning import UNDEFINED, fam, finite
+
+SPLITS = ("train", "val", "test")
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One of this run's headline figures (fractions), or why it is undefined."""
+
+    mean: float | None = None
+    std: float | None = None
+    reason: str = ""  # why mean (or, with a mean, why std) is undefined
+    digits: int = 2
+
+    def text(self) -> str:
+        """'mean ± std %', 'mean %' or 'undefined (reason)'."""
+        if not finite(self.mean):
+            return f"{UNDEFINED} ({self.reason or 'no value'})"
+        m = f"{100 * float(self.mean):.{self.digits}f}"
+        if self.std is None and not self.reason:
+            return f"{m} %"
+        if finite(self.std):
+            return f"{m} ± {100 * float(self.std):.{self.digits}f} %"
+        return f"{m} % (std {UNDEFINED}: {self.reason or 'no value'})"
+
+
+def _class_reason(rows: pl.DataFrame, split: str) -> str:
+    """Why a ranking metric is undefined on a split: no unstable or no stable window."""
+    name = {"val": "validation", "test": "test"}.get(split, split)
+    if rows.height and (rows["n_unstable"] == 0).all():
+        return f"the {name} split holds no unstable window"
+    if rows.height and (rows["n_unstable"] == rows["n"]).all():
+        return f"the {name} split holds no stable window"
+    return "no seed gave a defined value"
+
+
+def seed_figure(runs: pl.DataFrame, by: Sequence[str], metric: str, digits: int = 2) -> Figure:
+    """Mean ± std over seeds of ``metric`` in the runs already filtered to one configuration
+    (0/0 metrics undefined, as in the report's tables), with the reason when undefined."""
+    if runs.is_empty():
+        return Figure(reason="no run of this configuration")
+    row = defined_summary(runs, list(by)).row(0, named=True)
+    mean, std, n = row[f"{metric}_mean"], row[f"{metric}_std"], row.get(f"{metric}_n", 0)
+    if not finite(mean):
+        return Figure(reason=_class_reason(runs, str(runs["split"][0])), digits=digits)
+    reason = "" if finite(std) else f"{n} seed{'s' if n != 1 else ''} defined it"
+    return Figure(mean, std if finite(std) else None, reason, digits)
+
+
+def _runs(path: Path, **where: Any) -> pl.DataFrame | str:
+    """The rows of a runs.parquet matching ``where`` (window_s matched to the microsecond), or
+    why there are none."""
+    if not path.exists():
+        return f"{path} not produced"
+    runs = pl.read_parquet(path)
+    for col, value in where.items():
+        if col not in runs.columns:
+            return f"{path.name} has no column {col!r}"
+        runs = runs.filter(
+            (pl.col(col) - value).abs() < 1e-6 if isinstance(value, float) else pl.col(col) == value
+        )
+    return runs
+
+
+def baseline_figure(studies: Path, family: str, split: str, metric: str) -> Figure:
+    """A metric of one family at the baseline window (4.3), mean ± std over seeds."""
+    runs = _runs(studies / "baseline" / "runs.parquet", family=family, split=split)
+    if isinstance(runs, str):
+        return Figure(reason=runs)
+    if runs.is_empty():
+        return Figure(reason=f"no {fam(family)} run in this run's baseline study")
+    return seed_figure(runs, ["family", "split"], metric)
+
+
+def proxy_figure(studies: Path) -> Figure:
+    """The friction-ratio proxy's test AUPRC (4.7)."""
+    path = studies / "proxy.json"
+    if not path.exists():
+        return Figure(reason=f"{path} not produced")
+    test = read_json(path).get("test", {})
+    if finite(test.get("auprc")):
+        return Figure(float(test["auprc"]))
+    n, pos = test.get("n", 0), test.get("n_unstable", 0)
+    why = (
+        "the test split holds no window" if not n
+        else "the test split holds no unstable window" if not pos
+        else "the test split holds no stable window" if pos == n
+        else "not computed"
+    )  # fmt: skip
+    return Figure(reason=why)
+
+
+def splits_figure(studies: Path) -> Figure:
+    """Test AUPRC across the sampled split assignments (4.4): mean ± std over assignments."""
+    path = studies / "splits" / "summary.json"
+    if not path.exists():
+        return Figure(reason=f"{path} not produced")
+    s = read_json(path)
+    defined, total = s.get("defined", 0), s.get("assignments", 0)
+    if not finite(s.get("mean")):
+        return Figure(reason=f"none of {total} assignments has a defined test AUPRC")
+    std = s.get("std")
+    reason = "" if finite(std) else f"{defined} of {total} assignments defined"
+    return Figure(float(s["mean"]), float(std) if finite(std) else None, reason)
+
+
+def sweep_figure(studies: Path, family: str, window_s: float) -> Figure:
+    """Validation AUPRC of one sweep configuration (4.5), mean ± std over seeds."""
+    runs = _runs(studies / "sweep" / "runs.parquet", family=family, split="val")
+    if isinstance(runs, str):
+        return Figure(reason=runs, digits=3)
+    windows = sorted({float(w) for w in runs["window_s"]})
+    runs = runs.filter((pl.col("window_s") - window_s).abs() < 1e-6)
+    if runs.is_empty():
+        have = ", ".join(f"{w:g}" for w in windows) or "none"
+        return Figure(reason=f"{fam(family)} at {window_s:g} s is not in this run's sweep "
+                      f"(windows [s]: {have})", digits=3)  # fmt: skip
+    return seed_figure(runs, ["family", "window_s", "split"], "auprc", digits=3)
+
+
+# (section, quantity, reference value as the thesis prints it, this run's figure)
+HEADLINE: list[tuple[str, str, str, Callable[[Path], Figure]]] = [
+    ("4.3", "GRU test AUPRC at the 0.20 s baseline window (mean ± std over seeds)",
+     "98.43 ± 0.05 %", lambda s: baseline_figure(s, "gru", "test", "auprc")),
+    ("4.3", "GRU test AUROC at the baseline window", "97.78 ± 0.07 %",
+     lambda s: baseline_figure(s, "gru", "test", "auroc")),
+    ("4.7", "Friction-ratio proxy, test AUPRC", "96.27 %", proxy_figure),
+    ("4.7", "CNN test AUPRC at the baseline window (thesis: one saved checkpoint)", "98.03 %",
+     lambda s: baseline_figure(s, "cnn", "test", "auprc")),
+    ("4.7", "GRU test AUPRC at the baseline window (thesis: one saved checkpoint)", "98.34 %",
+     lambda s: baseline_figure(s, "gru", "test", "auprc")),
+    ("4.7", "LSTM test AUPRC at the baseline window (thesis: one saved checkpoint)", "98.41 %",
+     lambda s: baseline_figure(s, "lstm", "test", "auprc")),
+    ("4.4", "Split robustness: test AUPRC across sampled assignments (mean ± std)",
+     "97.14 ± 2.49 %", splits_figure),
+    ("4.5", "LSTM at a 0.01 s window, validation AUPRC (the latency-aware pick)",
+     "98.747 ± 0.022 %", lambda s: sweep_figure(s, "lstm", 0.01)),
+]  # fmt: skip
+
+
+def headline_rows(studies: Path | None) -> list[list[str]]:
+    """[section, quantity, this run, reference] for every headline figure (``studies``: the
+    results' studies directory, None when the report was given no learning results)."""
+
+    def value(fig: Callable[[Path], Figure]) -> str:
+        if studies is None:
+            return Figure(reason="no learning results given to the report").text()
+        return fig(Path(studies)).text()
+
+    return [[sec, what, value(fig), ref] for sec, what, ref, fig in HEADLINE]
+
+
+def run_scale(
+    config: Mapping[str, Any],
+    n_objects: int,
+    grasp_summaries: Sequence[Mapping[str, Any]],
+    dataset: Mapping[str, Any] | None,
+) -> dict[str, Any]:
+    """The numbers that say how big this run is (and so how much its figures can mean)."""
+    splits = (dataset or {}).get("splits", {})
+    windows = {s: sum(splits.get(s, {}).get(c, 0) for c in ("stable", "unstable")) for s in SPLITS}
+    train, tune = config.get("train", {}), config.get("tune", {})
+    return {
+        "profile": config.get("profile_name", "?"),
+        "objects": n_objects,
+        "candidate_grasps": sum(int(s.get("grasps", 0)) for s in grasp_summaries),
+        "usable_grasps": sum(int(splits.get(s, {}).get("grasps", 0)) for s in SPLITS)
+        if dataset else None,
+        "windows": windows if dataset else None,
+        "seeds": list(train.get("seeds", [])),
+        "max_epochs": train.get("max_epochs"),
+        "trials": tune.get("trials"),
+    }
+
+
+def scale_sentence(scale: Mapping[str, Any]) -> str:
+    """The run's profile and scale as HTML, with the smoke-test warning in bold for quick runs."""
+    w = scale["windows"]
+    windows = (
+        " / ".join(f"{w[s]:,} {s}" for s in SPLITS) + " windows" if w else "no window dataset"
+    )
+    usable = scale["usable_grasps"]
+    seeds = scale["seeds"]
+    text = (
+        f"Profile <b>{H.esc(scale['profile'])}</b>: {scale['objects']} objects, "
+        f"{scale['candidate_grasps']:,} candidate grasps annealed, "
+        f"{f'{usable:,}' if usable is not None else UNDEFINED} usable grasps (with at least one "
+        f"labelled window), {windows} at the baseline window; {len(seeds)} training seed"
+        f"{'s' if len(seeds) != 1 else ''} ({', '.join(map(str, seeds))}), at most "
+        f"{scale['max_epochs']} epochs, {scale['trials']} Optuna trials per family. "
+    )
+    if scale["profile"] == "thesis":
+        return text + "This is the reference's scale: the figures below are comparable to it."
+    return text + (
+        f"<b>{H.esc(str(scale['profile']).capitalize())}-profile numbers are a smoke test of "
+        "the pipeline, not a "
+        "reproduction of the reference's results.</b>"
+    )
+
+
+def headline_section(scale: Mapping[str, Any], studies: Path | None) -> str:
+    """The scale sentence and the table of this run's figures beside the reference's."""
+    return f'<p class="note">{scale_sentence(scale)}</p>' + H.table(
+        ["section", "figure", "this run", "reference (thesis)"],
+        headline_rows(studies),
+        caption="Headline figures: this run beside the reference's published numbers "
+        "(percent; 'undefined' gives the reason a value could not be computed)",
+        cls="text",
+    )

@@ -1,0 +1,89 @@
+"""What the report rule asks of the workflow (workflow/rules/report.smk): every other rule's
+benchmark files, and the arguments that make a nested Snakemake build this run's DAG. Plain
+functions of the workflow's data (no Snakemake import), so they are testable without a workflow.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import shlex
+import string
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+REPORT_RULE = "report"
+
+
+def ms_of(window_s: float) -> int:
+    """A window length in whole milliseconds (the dataset wildcard, as common.smk's ms_of)."""
+    return round(1000 * window_s)
+
+
+def benchmark_wildcards(
+    config: Mapping[str, Any], objects: Sequence[str], assignments: int, models: Sequence[str]
+) -> dict[str, dict[str, list]]:
+    """Wildcard values, in this run, of every rule whose benchmark path has wildcards. A rule's
+    jobs are only known from the DAG, so they are restated here; the report sets these counts
+    beside the --dag job counts, where a stale entry shows up as 'DAG: n'."""
+    shards = list(range(config["synthesis"]["shards"]))
+    sweep = [ms_of(w) for w in config["sweep"]["windows_s"]]
+    # trimmed datasets: the sweep's windows plus the tuning and split studies' own
+    windows = sorted({*sweep, *(ms_of(config[s]["window_s"]) for s in ("tune", "splits"))})
+    objects, models = list(objects), list(models)
+    return {
+        "fetch_ycb_object": {"object": objects},
+        "preprocess_object": {"object": objects},
+        "anneal_grasps": {"object": objects, "shard": shards},
+        "summarise_grasps": {"object": objects},
+        "replay_grasps": {"object": objects, "shard": shards},
+        "trim_sweep_window": {"ms": windows},
+        "train_model": {"model": models, "seed": list(config["train"]["seeds"])},
+        "tune_model": {"model": models},
+        "train_sweep_model": {"model": models, "ms": sweep, "seed": list(config["sweep"]["seeds"])},
+        "train_split_model": {
+            "model": [config["splits"]["family"]],
+            "k": list(range(assignments)),
+            "seed": list(config["splits"]["seeds"]),
+        },
+    }
+
+
+def pattern_fields(pattern: str) -> list[str]:
+    """The wildcard names of a path pattern without constraints ("a/{x}_{y}.tsv" -> [x, y])."""
+    return list(dict.fromkeys(f for _, f, _, _ in string.Formatter().parse(pattern) if f))
+
+
+def benchmark_inputs(
+    patterns: Iterable[tuple[str, str]], wildcards: Mapping[str, Mapping[str, Sequence]]
+) -> dict[str, list[str]]:
+    """Named inputs ``benchmark_<rule>`` listing every job's benchmark file of each rule but the
+    report (a rule cannot take its own benchmark as input). ``patterns``: (rule, benchmark path
+    without wildcard constraints). Explicit paths, not a glob at run time: a glob would miss a job
+    that never ran and count files left over from an earlier configuration."""
+    out = {}
+    for rule, pattern in patterns:
+        if rule == REPORT_RULE:
+            continue
+        fields = pattern_fields(pattern)
+        if fields and rule not in wildcards:
+            raise ValueError(
+                f"rule {rule} has a benchmark with wildcards {fields}: add its wildcard values "
+                "to benchmark_wildcards() in src/graspstab/report/inputs.py"
+            )
+        values = wildcards.get(rule, {})
+        combos = itertools.product(*(values[f] for f in fields))
+        out[f"benchmark_{rule}"] = [
+            pattern.format(**dict(zip(fields, combo, strict=True))) for combo in combos
+        ]
+    return out
+
+
+def nested_config_args(overrides: Mapping[str, Any]) -> str:
+    """A run's raw --config overrides as shell arguments for a nested Snakemake, so that it
+    builds the same DAG. Values go as JSON, which Snakemake's YAML parsing reads back unchanged;
+    an empty value is how --config spells None."""
+    args = [
+        f"{k}=" if v is None else f"{k}={json.dumps(v, default=str)}" for k, v in overrides.items()
+    ]
+    return "--config " + " ".join(shlex.quote(a) for a in args) if args else ""

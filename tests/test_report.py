@@ -1,0 +1,599 @@
+"""The report (issue 7): strict JSON, the headline, funnel, stage-time and DAG helpers against hand
+computations, and whole reports built by the real write_report and rendered in headless Chromium
+(no console errors, a non-blank screenshot, every section id, every embedded image decodes)."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import polars as pl  # noqa: E402
+import pytest  # noqa: E402
+from PIL import Image  # noqa: E402
+
+from graspstab.common.io import read_json, write_json, write_parquet  # noqa: E402
+from graspstab.config import load_config  # noqa: E402
+from graspstab.learning import aggregate, studies  # noqa: E402
+from graspstab.learning.metrics import (  # noqa: E402
+    binary_metrics,
+    per_object_metrics,
+    select_threshold,
+    threshold_grid,
+)
+from graspstab.report import dag  # noqa: E402
+from graspstab.report.funnel import funnel  # noqa: E402
+from graspstab.report.headline import (  # noqa: E402
+    headline_rows,
+    run_scale,
+    scale_sentence,
+)
+from graspstab.report.provenance import stage_times  # noqa: E402
+from graspstab.report.write_report import SECTION_IDS, write_report  # noqa: E402
+from tests.conftest import REPO, SCHEMA  # noqa: E402
+
+FAMILIES = ("cnn", "gru", "lstm")
+OBJECTS = {"014_lemon": "train", "013_apple": "val", "077_rubiks_cube": "test"}
+
+
+def _reject(token: str) -> Any:
+    raise ValueError(f"non-standard JSON constant {token}")
+
+
+# --------------------------------------------------------------------------- strict JSON
+
+
+def test_write_json_writes_strict_json(tmp_path: Path) -> None:
+    data = {
+        "nan": float("nan"),
+        "inf": float("inf"),
+        "ninf": -math.inf,
+        "np": np.float32("nan"),
+        "array": np.array([1.0, np.nan, 2.5]),
+        "nested": [{"x": (np.float64(np.inf), 3)}],
+        "ok": np.int64(7),
+    }
+    write_json(tmp_path / "x.json", data)
+    text = (tmp_path / "x.json").read_text()
+    parsed = json.loads(text, parse_constant=_reject)  # a strict parser accepts it
+    assert parsed == {
+        "nan": None, "inf": None, "ninf": None, "np": None, "array": [1.0, None, 2.5],
+        "nested": [{"x": [None, 3]}], "ok": 7,
+    }  # fmt: skip
+    assert "NaN" not in text and "Infinity" not in text
+
+
+def test_undefined_metrics_survive_the_null_round_trip(tmp_path: Path) -> None:
+    """metrics.json stores an undefined AUPRC as null; the studies read it back as NaN."""
+    rec = _record("gru", 42, val_unstable=0.0)
+    write_json(tmp_path / "m.json", rec)
+    back = read_json(tmp_path / "m.json")
+    assert back["val"]["auprc"] is None
+    runs = aggregate.run_rows([back], [{}])
+    assert math.isnan(runs.filter(pl.col("split") == "val")["auprc"][0])
+
+
+# ------------------------------------------------------------------------------ headline
+
+
+def _runs_frame(rows: list[dict[str, Any]]) -> pl.DataFrame:
+    """A runs table with just what the headline reads (and undefined_as_nan needs)."""
+    base = {"tp": 1, "fp": 1, "fn": 1, "precision": 0.5, "recall": 0.5, "f1": 0.5,
+            "n": 100, "n_unstable": 10, "window_s": 0.2}  # fmt: skip
+    return pl.DataFrame([{**base, **r} for r in rows])
+
+
+def _studies_tree(root: Path) -> Path:
+    s = root / "studies"
+    rows = [
+        {"family": "cnn", "seed": 42, "split": "test", "auprc": 0.80, "auroc": 0.7},
+        {"family": "cnn", "seed": 43, "split": "test", "auprc": 0.90, "auroc": 0.9},
+        # the GRU's test split holds no unstable window: its AUPRC is undefined, not 0
+        {"family": "gru", "seed": 42, "split": "test", "auprc": math.nan, "auroc": math.nan,
+         "n_unstable": 0},
+        {"family": "gru", "seed": 43, "split": "test", "auprc": math.nan, "auroc": math.nan,
+         "n_unstable": 0},
+        {"family": "lstm", "seed": 42, "split": "test", "auprc": 0.5, "auroc": 0.6},
+    ]  # fmt: skip
+    write_parquet(s / "baseline" / "runs.parquet", _runs_frame(rows))
+    write_json(s / "proxy.json", {"test": {"auprc": math.nan, "n": 50, "n_unstable": 0}})
+    write_json(s / "splits" / "summary.json",
+               {"assignments": 3, "defined": 1, "mean": 0.25, "std": math.nan})  # fmt: skip
+    sweep = [{"family": "lstm", "seed": k, "split": "val", "auprc": v, "auroc": 0.5,
+              "window_s": w} for k, (v, w) in enumerate([(0.6, 0.02), (0.7, 0.05)])]  # fmt: skip
+    write_parquet(s / "sweep" / "runs.parquet", _runs_frame(sweep))
+    return s
+
+
+def test_headline_values_and_undefined_reasons(tmp_path: Path) -> None:
+    rows = {r[1]: r[2] for r in headline_rows(_studies_tree(tmp_path))}
+    cnn = next(v for k, v in rows.items() if k.startswith("CNN test AUPRC"))
+    assert cnn == f"85.00 ± {100 * np.std([0.8, 0.9], ddof=1):.2f} %"  # by hand: 7.07
+    gru = next(v for k, v in rows.items() if k.startswith("GRU test AUPRC at the 0.20"))
+    assert gru == "undefined (the test split holds no unstable window)"
+    assert rows["GRU test AUROC at the baseline window"] == gru
+    lstm = next(v for k, v in rows.items() if k.startswith("LSTM test AUPRC"))
+    assert lstm == "50.00 % (std undefined: 1 seed defined it)"
+    assert rows["Friction-ratio proxy, test AUPRC"] == (
+        "undefined (the test split holds no unstable window)"
+    )
+    split = next(v for k, v in rows.items() if k.startswith("Split robustness"))
+    assert split == "25.00 % (std undefined: 1 of 3 assignments defined)"
+    sweep = next(v for k, v in rows.items() if k.startswith("LSTM at a 0.01 s"))
+    assert sweep.startswith("undefined (LSTM at 0.01 s is not in this run's sweep")
+    assert "0.02, 0.05" in sweep
+    for value in rows.values():  # an undefined value never prints as a number
+        assert not re.match(r"^0(\.0+)? ?%", value), value
+
+
+def test_headline_names_missing_artefacts(tmp_path: Path) -> None:
+    rows = headline_rows(tmp_path / "studies")
+    assert len(rows) == 8
+    assert all(r[2].startswith("undefined (") and "not produced" in r[2] for r in rows)
+    assert [r[3] for r in rows] == [
+        "98.43 ± 0.05 %", "97.78 ± 0.07 %", "96.27 %", "98.03 %", "98.34 %", "98.41 %",
+        "97.14 ± 2.49 %", "98.747 ± 0.022 %",
+    ]  # fmt: skip
+
+
+def test_scale_sentence_warns_in_bold_for_quick_runs() -> None:
+    config = {"profile_name": "quick", "train": {"seeds": [42, 43], "max_epochs": 8},
+              "tune": {"trials": 4}}  # fmt: skip
+    dataset = {"splits": {"train": {"grasps": 5, "stable": 90, "unstable": 10},
+                          "val": {"grasps": 2, "stable": 30, "unstable": 0},
+                          "test": {"grasps": 3, "stable": 40, "unstable": 5}}}  # fmt: skip
+    scale = run_scale(config, 3, [{"grasps": 16}, {"grasps": 16}, {"grasps": 16}], dataset)
+    assert scale["candidate_grasps"] == 48 and scale["usable_grasps"] == 10
+    assert scale["windows"] == {"train": 100, "val": 30, "test": 45}
+    text = scale_sentence(scale)
+    assert "3 objects" in text and "48 candidate grasps" in text and "10 usable grasps" in text
+    assert "100 train / 30 val / 45 test windows" in text and "2 training seeds (42, 43)" in text
+    assert "at most 8 epochs" in text and "4 Optuna trials" in text
+    assert re.search(r"<b>Quick-profile numbers are a smoke test[^<]*not a reproduction", text)
+    thesis = scale_sentence({**scale, "profile": "thesis"})
+    assert "smoke test" not in thesis and "reference's scale" in thesis
+
+
+# -------------------------------------------------------------------------------- funnel
+
+
+def _replays(path: Path, obj: str, held: list[bool], diverged: list[bool]) -> Path:
+    n = len(held)
+    frame = pl.DataFrame({
+        "grasp_id": list(range(n)), "object": [obj] * n, "shard": [0] * n,
+        "stop_reason": ["completed" if h else "contact_lost" for h in held],
+        "diverged": diverged, "held_at_end": held, "max_penetration": [0.001] * n,
+        "duration_s": [1.0] * n, "wall_s": [0.5] * n,
+    })  # fmt: skip
+    write_parquet(path, frame)
+    return path
+
+
+def test_funnel_counts_per_object_and_total(tmp_path: Path) -> None:
+    summaries = [{"object_id": "a_obj", "grasps": 4}, {"object_id": "b_obj", "grasps": 3}]
+    tables = [
+        _replays(tmp_path / "a0.parquet", "a_obj", [True, False], [False, False]),
+        _replays(tmp_path / "a1.parquet", "a_obj", [True, True], [False, True]),
+        _replays(tmp_path / "b0.parquet", "b_obj", [False, False, True], [True, False, False]),
+    ]
+    empty = {"grasps": 0, "stable": 0, "unstable": 0}
+    dataset = {"objects": {
+        "a_obj": {"train": {"grasps": 2, "stable": 30, "unstable": 4}, "val": empty,
+                  "test": empty},
+        "b_obj": {"train": empty, "val": empty,
+                  "test": {"grasps": 1, "stable": 9, "unstable": 1}},
+    }}  # fmt: skip
+    rows = funnel(summaries, tables, dataset)
+    assert rows == [
+        {"object": "a_obj", "annealed": 4, "replayed": 4, "diverged": 1, "held": 3,
+         "usable": 2, "windows": 34, "unstable": 4},
+        {"object": "b_obj", "annealed": 3, "replayed": 3, "diverged": 1, "held": 1,
+         "usable": 1, "windows": 10, "unstable": 1},
+        {"object": "all objects", "annealed": 7, "replayed": 7, "diverged": 2, "held": 4,
+         "usable": 3, "windows": 44, "unstable": 5},
+    ]  # fmt: skip
+    no_dataset = funnel(summaries, tables, None)
+    assert no_dataset[-1]["usable"] is None and no_dataset[-1]["replayed"] == 7
+
+
+# ------------------------------------------------------------------------ stage times
+
+
+def _bench(path: Path, seconds: float, rss: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(
+        "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+        f"{seconds}\t0:00:00\t{rss}\t1\t1\t1\t0\t0\t50\t1\n"
+    )
+    return path
+
+
+def test_stage_times_match_hand_sums(tmp_path: Path) -> None:
+    b = tmp_path / "benchmarks"
+    files = {
+        "anneal_grasps": [_bench(b / "anneal_grasps" / f"x_shard_{k}.tsv", s, r)
+                          for k, (s, r) in enumerate([(10.0, "100.5"), (30.0, "NA"),
+                                                      (20.0, "300.0")])],
+        "build_hand": [_bench(b / "build_hand" / "hand.tsv", 40.0, "50.0"),
+                       b / "build_hand" / "never_written.tsv"],
+    }  # fmt: skip
+    rows = stage_times(files, {"anneal_grasps": 3, "build_hand": 1, "aggregate": 1},
+                       order=["build_hand", "anneal_grasps", "aggregate"])  # fmt: skip
+    assert [r["rule"] for r in rows] == ["build_hand", "anneal_grasps", "aggregate"]
+    hand, anneal, agg = rows
+    assert anneal["jobs"] == 3 and anneal["job_s"] == pytest.approx(60.0)
+    assert anneal["share"] == pytest.approx(60.0 / 100.0)
+    assert anneal["max_s"] == 30.0 and anneal["max_job"] == "x_shard_1"
+    assert anneal["peak_rss_mb"] == pytest.approx(300.0)  # "NA" is skipped, not read as 0
+    assert hand["jobs"] == 1 and hand["missing"] == 1 and hand["share"] == pytest.approx(0.4)
+    assert agg["jobs"] == 0 and agg["dag_jobs"] == 1 and agg["job_s"] is None
+
+
+# ----------------------------------------------------------------------------------- DAG
+
+# Snakemake's dot format (9.x): a rule graph and the job graph of the same toy workflow.
+RULEGRAPH = """digraph snakemake_dag {
+    graph[bgcolor=white, margin=0];
+    node[shape=box, style=rounded, fontname=sans,                 fontsize=10, penwidth=2];
+    edge[penwidth=2, color=grey];
+\t0[label = "report", color = "0.48 0.6 0.85", style="rounded"];
+\t1[label = "anneal_grasps", color = "0.10 0.6 0.85", style="rounded"];
+\t2[label = "preprocess_object", color = "0.43 0.6 0.85", style="rounded"];
+\t3[label = "build_hand", color = "0.12 0.6 0.85", style="rounded"];
+\t1 -> 0
+\t2 -> 0
+\t3 -> 0
+\t2 -> 1
+\t3 -> 1
+}
+"""
+JOBGRAPH = """digraph snakemake_dag {
+    graph[bgcolor=white, margin=0];
+\t0[label = "report", color = "0.48 0.6 0.85", style="rounded"];
+\t1[label = "anneal_grasps\\nobject: a_obj\\nshard: 0", color = "0.1 0.6 0.85", style="rounded"];
+\t2[label = "anneal_grasps\\nobject: a_obj\\nshard: 1", color = "0.1 0.6 0.85", style="rounded"];
+\t3[label = "preprocess_object\\nobject: a_obj", color = "0.4 0.6 0.85", style="rounded"];
+\t4[label = "build_hand", color = "0.12 0.6 0.85", style="rounded"];
+\t1 -> 0
+\t2 -> 0
+\t3 -> 1
+\t3 -> 2
+\t4 -> 1
+\t4 -> 2
+\t3 -> 0
+}
+"""
+
+
+def test_dag_parsing_of_snakemake_dot() -> None:
+    graph = dag.rule_graph(RULEGRAPH)
+    assert set(graph.nodes) == {"report", "anneal_grasps", "preprocess_object", "build_hand"}
+    assert set(graph.edges) == {
+        ("anneal_grasps", "report"), ("preprocess_object", "report"), ("build_hand", "report"),
+        ("preprocess_object", "anneal_grasps"), ("build_hand", "anneal_grasps"),
+    }  # fmt: skip
+    assert set(dag.rule_graph(JOBGRAPH).edges) <= set(graph.edges)  # jobs collapse onto rules
+    counts = dag.job_counts(JOBGRAPH)
+    assert counts == {"report": 1, "anneal_grasps": 2, "preprocess_object": 1, "build_hand": 1}
+    assert dag.layers(graph) == {"build_hand": 0, "preprocess_object": 0, "anneal_grasps": 1,
+                                 "report": 2}  # fmt: skip
+    text = dag.overview_text(graph, counts)
+    assert "4 rules as 5 jobs" in text and "anneal_grasps (2)" in text
+    png = Image.open(io.BytesIO(dag.draw_rule_graph(graph, counts, dpi=60)))
+    assert png.format == "PNG" and np.asarray(png.convert("L")).std() > 0
+
+
+def test_dot_with_undeclared_node_is_an_error() -> None:
+    with pytest.raises(ValueError, match="undeclared"):
+        dag.parse_dot('digraph d {\n\t0[label = "a"];\n\t1 -> 0\n}')
+
+
+@pytest.fixture(scope="session")
+def snakemake_graphs(
+    tmp_path_factory: pytest.TempPathFactory, ycb_dir: Path, hand_assets_dir: Path
+) -> dict[str, Path]:
+    """Snakemake's own --rulegraph and --dag of this workflow (default config), made exactly as
+    rule rulegraph makes them (a few seconds; nothing runs)."""
+    out = tmp_path_factory.mktemp("graphs")
+    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+    paths = {}
+    for kind in ("rulegraph", "dag"):
+        proc = subprocess.run(
+            [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(out),
+             "--nolock", "--forceall", "results/report.html", f"--{kind}"],
+            capture_output=True, text=True, env=env, timeout=300,
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        paths[kind] = out / f"{kind}.dot"
+        paths[kind].write_text(proc.stdout)
+    return paths
+
+
+def test_parses_snakemakes_own_rule_graph(snakemake_graphs: dict[str, Path]) -> None:
+    """The parser reads the installed Snakemake's output: every rule, report the only sink."""
+    graph, counts = dag.read_graph(snakemake_graphs["rulegraph"], snakemake_graphs["dag"])
+    assert {"report", "rulegraph", "anneal_grasps", "replay_grasps", "train_model"} <= set(graph)
+    assert [n for n in graph if graph.out_degree(n) == 0] == ["report"]
+    assert set(counts) == set(graph.nodes)
+    assert set(dag.rule_graph(snakemake_graphs["dag"].read_text()).edges) == set(graph.edges)
+    assert counts["report"] == 1 and counts["anneal_grasps"] > 1
+
+
+# --------------------------------------------------------------------- report fixtures
+
+
+def _png(path: Path, seed: int) -> Path:
+    rng = np.random.default_rng(seed)
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.plot(rng.normal(size=20))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=40)
+    plt.close(fig)
+    return path
+
+
+def _record(family: str, seed: int, val_unstable: float, **extra: Any) -> dict[str, Any]:
+    """A metrics.json record as train_model writes it, from synthetic scores."""
+    rng = np.random.default_rng([seed, FAMILIES.index(family), int(100 * val_unstable)])
+    rec: dict[str, Any] = {"family": family, "seed": seed, "parameters": 1000,
+                           "seconds_per_epoch": 1.0, "best_epoch": 2, "window_steps": 400}
+    data = {}
+    for split, frac in (("val", val_unstable), ("test", 0.3)):
+        labels = (rng.random(80) < frac).astype(np.int8)
+        probs = 1 / (1 + np.exp(-rng.normal(2.0 * (2 * labels - 1), 1.5)))
+        data[split] = (labels, probs)
+    choice = select_threshold(data["val"][1], data["val"][0], threshold_grid())
+    rec["threshold"] = {**vars(choice), "min_recall": 0.9}
+    obj = {"val": "013_apple", "test": "077_rubiks_cube"}
+    for split, (labels, probs) in data.items():
+        rec[split] = binary_metrics(probs, labels, choice.threshold)
+        rec[f"{split}_objects"] = per_object_metrics(
+            probs, labels, np.array([obj[split]] * len(labels)), choice.threshold
+        )
+    return {**rec, **extra}
+
+
+def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
+    """A small results tree with every artefact write_report reads, and its keyword arguments.
+    Validation never slips (as in a quick run), so undefined values must render as such."""
+    r = root / "results"
+    figs = {k: _png(r / "figures" / f"{k}.png", i) for i, k in enumerate(
+        ["objects", "hand_candidates", "hand_capsules", "pregrasp", "grasp_gallery",
+         "energy_histograms", "replay_trace", "window"])}  # fmt: skip
+    learning = {k: _png(r / "figures" / "learning" / f"{k}.png", 20 + i)
+                for i, k in enumerate(["benchmark", "confusion", "objects", "splits", "sweep",
+                                       "latency", "operating_points", "threshold_transfer",
+                                       "reliability", "proxy", "tuning"])}  # fmt: skip
+    metas, summaries, replays, bench = [], [], [], {}
+    q = {"q05": 0.001, "q50": 0.002, "q95": 0.004}
+    for i, (obj, _) in enumerate(OBJECTS.items()):
+        metas.append(r / "objects" / obj / "meta.json")
+        write_json(metas[-1], {"object_id": obj, "mass": 0.1, "volume": 1e-4,
+                               "extents": [0.05, 0.06, 0.07], "watertight_before": True,
+                               "watertight_after": True, "convex_parts": 3})  # fmt: skip
+        summaries.append(r / "grasps" / obj / "summary.json")
+        write_json(summaries[-1], {
+            "object_id": obj, "grasps": 4, "energy_start": {"q50": 900.0}, "energy": q,
+            "energy_fell_fraction": 1.0, "terms": {"dis": q, "pen": {"q50": math.nan}},
+            "tip_abs_dist": q, "tips_within_5mm_mean": 3.0, "min_candidate_dist": q,
+            "max_hand_depth": q, "acceptance_rate": q,
+        })  # fmt: skip
+        replays.append(_replays(r / "replay" / obj / "replays_0.parquet", obj,
+                                [True, True, False, i > 0], [False] * 4))  # fmt: skip
+        bench.setdefault("preprocess_object", []).append(
+            _bench(r / "benchmarks" / "preprocess_object" / f"{obj}.tsv", 5.0 + i, "200")
+        )
+        bench.setdefault("anneal_grasps", []).append(
+            _bench(r / "benchmarks" / "anneal_grasps" / f"{obj}_shard_0.tsv", 8.0, "300")
+        )
+    write_json(r / "hand" / "hand.json", {
+        "joint_names": ["j0", "j1"], "joint_lower": [-0.1, 0.0], "joint_upper": [1.0, 1.5],
+        "fingertips": {"index": "tip_i", "thumb": "tip_t"}, "wrist_joint": "wrist",
+    })  # fmt: skip
+    counts = {s: {"grasps": 0, "stable": 0, "unstable": 0} for s in ("train", "val", "test")}
+    objects = {o: {**counts, s: {"grasps": 3, "stable": 50, "unstable": 5 if s != "val" else 0}}
+               for o, s in OBJECTS.items()}  # fmt: skip
+    dataset = {"window_s": 0.2, "windows": 165, "objects": objects,
+               "splits": {s: objects[o][s] for o, s in OBJECTS.items()}}  # fmt: skip
+    write_json(r / "datasets" / "baseline" / "summary.json", dataset)
+    for ms in (10, 20):
+        write_json(r / "datasets" / "sweep" / f"w{ms}ms" / "summary.json",
+                   {**dataset, "window_s": ms / 1000})  # fmt: skip
+    s = r / "studies"
+    paths = []
+    for f in FAMILIES:
+        for seed in (42, 43):
+            paths.append(r / "train" / "baseline" / f / f"seed{seed}" / "metrics.json")
+            write_json(paths[-1], _record(f, seed, 0.0))
+    studies.aggregate_baseline(paths, s / "baseline")
+    sweep = [_record("lstm", seed, 0.3, window_s=w) for seed in (42, 43) for w in (0.01, 0.02)]
+    write_parquet(s / "sweep" / "runs.parquet",
+                  aggregate.run_rows(sweep, [{"window_s": x["window_s"]} for x in sweep]))
+    write_json(s / "splits" / "summary.json", {
+        "assignments": 2, "defined": 2, "mean": 0.7, "std": 0.1, "median": 0.7, "min": 0.6,
+        "fixed_split": 0.8, "hardest": [], "per_assignment": [],
+    })  # fmt: skip
+    write_json(s / "proxy.json", {"test": {"auprc": 0.55, "auroc": 0.6, "n": 165,
+                                           "n_unstable": 10}})  # fmt: skip
+    graph, _ = dag.read_graph(graphs["rulegraph"], graphs["dag"])
+    for rule in graph:  # every rule benchmarked, so the stage table has a row for each
+        if rule not in bench and rule != "report":
+            bench[rule] = [_bench(r / "benchmarks" / rule / "x.tsv", 1.0, "100")]
+    config = load_config(REPO / "config", SCHEMA, check_files=False)
+    return {
+        "config": config, "figures": figs, "object_meta": metas,
+        "hand_json": r / "hand" / "hand.json", "benchmark_files": bench["preprocess_object"],
+        "grasp_summaries": summaries, "anneal_benchmarks": bench["anneal_grasps"],
+        "replay_summaries": replays, "dataset_summary": r / "datasets" / "baseline" /
+        "summary.json", "sweep_summaries": sorted(r.glob("datasets/sweep/*/summary.json")),
+        "learning_results": r, "learning_figures": learning, "rule_benchmarks": bench,
+        "rulegraph": graphs["rulegraph"], "jobgraph": graphs["dag"],
+    }  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def synthetic_report(
+    tmp_path_factory: pytest.TempPathFactory, snakemake_graphs: dict[str, Path]
+) -> Path:
+    """The real write_report on the synthetic results tree."""
+    root = tmp_path_factory.mktemp("report_synthetic")
+    write_report(out_html=root / "report.html", **_synthetic_results(root, snakemake_graphs))
+    return root / "report.html"
+
+
+@pytest.fixture(scope="module")
+def finished_run_report(run: tuple[Path, dict, list]) -> Path:
+    """The report the end-to-end toy run wrote (tests/conftest.py ``run``): the real rule."""
+    return run[0] / "results" / "report.html"
+
+
+@pytest.fixture(params=["synthetic_report", "finished_run_report"])
+def report_html(request: pytest.FixtureRequest) -> Path:
+    """Each report in turn."""
+    return request.getfixturevalue(request.param)
+
+
+def _images(html: str) -> list[bytes]:
+    return [base64.b64decode(d) for d in re.findall(r'src="data:image/png;base64,([^"]+)"', html)]
+
+
+def test_report_has_every_section_and_decodable_images(report_html: Path) -> None:
+    html = report_html.read_text()
+    ids = re.findall(r'\sid="([^"]+)"', html)
+    assert len(ids) == len(set(ids)), "duplicate ids"
+    assert set(SECTION_IDS) <= set(ids), sorted(set(SECTION_IDS) - set(ids))
+    links = set(re.findall(r'<a href="#([^"]+)"', html))
+    assert links <= set(ids) and {"headline", "pipeline", "provenance", "funnel"} <= links
+    order = [html.index(f'id="{i}"') for i in ("contents", "headline", "pipeline", "objects")]
+    assert order == sorted(order)  # contents, headline and DAG overview come first
+    images = _images(html)
+    # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree)
+    assert len(images) == 20
+    for data in images:
+        with Image.open(io.BytesIO(data)) as img:
+            img.load()
+            assert img.size[0] > 10 and img.size[1] > 10
+    assert "issue 4 in progress" not in html
+    text = re.sub(r"<[^>]+>", " ", re.sub(r'src="data:[^"]*"', "", html))
+    assert not re.search(r"\bnan\b", text, re.IGNORECASE)
+
+
+def test_synthetic_report_headline_and_provenance(synthetic_report: Path) -> None:
+    html = synthetic_report.read_text()
+    assert "<b>Quick-profile numbers are a smoke test" in html
+    assert "12 candidate grasps annealed, 9 usable grasps" in html
+    # validation never slips: the tuned-pick row is defined, the proxy's is our number
+    assert "<td>55.00 %</td><td>96.27 %</td>" in html
+    assert "Stage wall times" in html and "runs now: benchmark after this report" in html
+    assert re.search(r"<td>all objects</td><td>12</td><td>12</td><td>0</td><td>8</td>", html)
+
+
+# ------------------------------------------------------------------ headless browser
+
+
+def _chromium() -> tuple[str, str]:
+    """Debian's chromium and its matching chromedriver (packages chromium, chromium-driver)."""
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver = shutil.which("chromedriver")
+    if not browser or not driver:
+        raise FileNotFoundError(
+            "headless browser test needs Debian's chromium and chromium-driver: "
+            "apt-get install -y chromium chromium-driver (.ci/run installs them)"
+        )
+    return browser, driver
+
+
+@pytest.fixture(scope="module")
+def browser() -> Any:
+    """One headless Chromium for the module, logging every console message."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    binary, driver_path = _chromium()
+    options = webdriver.ChromeOptions()
+    options.binary_location = binary
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage",
+                "--disable-gpu", "--window-size=1280,1000"):  # fmt: skip
+        options.add_argument(arg)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    driver.set_page_load_timeout(120)
+    yield driver
+    driver.quit()
+
+
+def _render(driver: Any, page: Path) -> dict[str, Any]:
+    """Load a page; return its console errors, its images' decode state and a screenshot."""
+    driver.get_log("browser")  # drop what an earlier page left
+    driver.get(page.resolve().as_uri())
+    images = driver.execute_script(
+        "return Array.from(document.images).map(i => [i.complete, i.naturalWidth]);"
+    )
+    errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+    return {"errors": errors, "images": images, "png": driver.get_screenshot_as_png()}
+
+
+def test_browser_check_catches_errors(browser: Any, tmp_path: Path) -> None:
+    """The console check is not vacuous: a missing image and a script error are both caught."""
+    page = tmp_path / "broken.html"
+    page.write_text('<html><body><h1>x</h1><img src="missing.png">'
+                    "<script>undefinedFunction();</script></body></html>")  # fmt: skip
+    seen = " ".join(e["message"] for e in _render(browser, page)["errors"])
+    assert "missing.png" in seen and "undefinedFunction" in seen
+
+
+def test_report_renders_in_headless_chromium(browser: Any, report_html: Path) -> None:
+    got = _render(browser, report_html)
+    assert got["errors"] == [], got["errors"]
+    assert got["images"] and all(ok and width > 0 for ok, width in got["images"])
+    shot = np.asarray(Image.open(io.BytesIO(got["png"])).convert("L"), dtype=float)
+    assert shot.shape[0] > 100 and shot.shape[1] > 100
+    assert shot.var() > 0, "blank screenshot"
+
+
+def test_benchmark_inputs_match_the_dag(snakemake_graphs: dict[str, Path]) -> None:
+    """The report's explicit benchmark list names exactly one file per job of the DAG."""
+    from graspstab.learning.splits import sample_assignments
+    from graspstab.report.inputs import benchmark_wildcards
+
+    config = load_config(REPO / "config", SCHEMA, check_files=False)
+    splits = {o: e["split"] for o, e in config["objects"]["items"].items()}
+    n = len(sample_assignments(splits, config["splits"]["count"], config["splits"]["sample_seed"]))
+    wildcards = benchmark_wildcards(config, list(splits), n, FAMILIES)
+    counts = dag.job_counts(snakemake_graphs["dag"].read_text())
+    expected = {rule: math.prod(len(v) for v in values.values())
+                for rule, values in wildcards.items()}  # fmt: skip
+    assert expected == {rule: counts[rule] for rule in wildcards}
+
+
+def test_benchmark_inputs_expand_patterns() -> None:
+    from graspstab.report.inputs import benchmark_inputs, nested_config_args
+
+    got = benchmark_inputs(
+        [("anneal_grasps", "b/anneal_grasps/{object}_shard_{shard}.tsv"),
+         ("build_hand", "b/build_hand/hand.tsv"), ("report", "b/report/report.tsv")],
+        {"anneal_grasps": {"object": ["x", "y"], "shard": [0, 1]}},
+    )  # fmt: skip
+    shards = [f"b/anneal_grasps/{o}_shard_{k}.tsv" for o in "xy" for k in (0, 1)]
+    assert got == {
+        "benchmark_anneal_grasps": shards,
+        "benchmark_build_hand": ["b/build_hand/hand.tsv"],
+    }
+    with pytest.raises(ValueError, match="new_rule"):
+        benchmark_inputs([("new_rule", "b/{k}.tsv")], {})
+    args = nested_config_args({"synthesis": {"shards": "3"}, "only_objects": ["a b"], "x": None})
+    assert args == "--config 'synthesis={\"shards\": \"3\"}' 'only_objects=[\"a b\"]' x="
