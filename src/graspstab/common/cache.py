@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import importlib.metadata
 import json
 import logging
 import os
@@ -27,7 +26,7 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from graspstab.common.provenance import _PKG_ROOT, code_version, stable_hash
+from graspstab.common.provenance import _PKG_ROOT, code_version, installed_versions, stable_hash
 
 log = logging.getLogger(__name__)
 
@@ -47,17 +46,6 @@ def content_digest(path: str | os.PathLike[str]) -> str:
         return "dir:" + h.hexdigest()
     with open(p, "rb") as fh:
         return hashlib.file_digest(fh, "sha256").hexdigest()
-
-
-def package_versions(names: Iterable[str] = KEY_PACKAGES) -> dict[str, str]:
-    """Installed versions of the packages in the key ('-' where absent)."""
-    out = {}
-    for name in names:
-        try:
-            out[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            out[name] = "-"
-    return out
 
 
 def stage_closure(stages: Iterable[str]) -> list[str]:
@@ -94,7 +82,7 @@ def job_key(
         "params": params,
         "wildcards": dict(wildcards),
         "inputs": [content_digest(p) for p in inputs],
-        "packages": package_versions(),
+        "packages": installed_versions(KEY_PACKAGES, missing="-"),
     }
     return stable_hash(material, length=32), material
 

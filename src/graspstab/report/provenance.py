@@ -4,11 +4,12 @@ times and peak memory from the Snakemake benchmark files of every rule."""
 from __future__ import annotations
 
 import csv
-import importlib.metadata
 import subprocess
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from graspstab.common.provenance import installed_versions
 
 PACKAGES = (
     "graspstab",
@@ -26,13 +27,7 @@ PACKAGES = (
 
 def package_versions() -> dict[str, str]:
     """Installed versions of the packages the pipeline depends on."""
-    out = {}
-    for name in PACKAGES:
-        try:
-            out[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
+    return installed_versions(PACKAGES)
 
 
 def git_commit(repo_dir: Path) -> str:
