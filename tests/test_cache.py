@@ -9,7 +9,6 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from snakemake.iocontainers import Namedlist
 
 from graspstab.common.cache import (
     ResultCache,
@@ -18,6 +17,19 @@ from graspstab.common.cache import (
     run_cached,
     stage_closure,
 )
+
+
+class Namedlist(list):
+    """What a script job's snakemake.input/output/params offer: a list with named items."""
+
+    def __init__(self, fromdict: dict):
+        super().__init__(fromdict.values())
+        self._map = dict(fromdict)
+        for name, value in fromdict.items():
+            setattr(self, name, value)
+
+    def items(self):
+        return self._map.items()
 
 
 def _job(tmp: Path, cache_dir: Path, *, params=None, inputs=None, enabled=True, outdir="out"):

@@ -171,8 +171,10 @@ def run_cached(smk: Any, stages: Iterable[str], compute: Callable[[], None]) -> 
     if not enabled:
         compute()
         return False
-    outputs = {name: path for name, path in _named(smk.output)}
-    params = {name: value for name, value in _named(smk.params)}
+    # Outputs by position (the rule fixes their order); params by name plus every value in order,
+    # so unnamed ones count too. Only list behaviour and items() of Snakemake's containers are used.
+    outputs = {str(i): path for i, path in enumerate(smk.output)}
+    params = {"named": dict(smk.params.items()), "values": list(smk.params)}
     key, material = job_key(smk.rule, stages, params, dict(smk.wildcards.items()), list(smk.input))
     cache = ResultCache(root)
     if cache.restore(smk.rule, key, outputs):
@@ -186,18 +188,3 @@ def run_cached(smk: Any, stages: Iterable[str], compute: Callable[[], None]) -> 
     compute()
     cache.store(smk.rule, key, outputs, material)
     return False
-
-
-def _named(items: Any) -> list[tuple[str, Any]]:
-    """(name, value) for every item of a Snakemake Namedlist, positional ones named by index."""
-    names = {index: name for name, index in _name_index(items)}
-    return [(names.get(i, str(i)), value) for i, value in enumerate(items)]
-
-
-def _name_index(items: Any) -> list[tuple[str, int]]:
-    """Names of a Namedlist's items with their positions (single items only)."""
-    out = []
-    for name, (start, end) in getattr(items, "_names", {}).items():
-        if end is None or end == start + 1:
-            out.append((name, start))
-    return out
