@@ -17,7 +17,6 @@ written; the dry runs use a temporary work directory.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 import re
@@ -33,6 +32,9 @@ from typing import Any
 import polars as pl
 import pyarrow.parquet as pq
 import yaml
+
+from graspstab.report.dag import rule_graph
+from graspstab.report.provenance import read_benchmark
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -136,9 +138,7 @@ def parse_dry_run(text: str) -> list[Job]:
 
 def rule_edges(entries: Sequence[str]) -> list[tuple[str, str]]:
     """(upstream, downstream) rule pairs of the rule graph (``--rulegraph`` DOT output)."""
-    dot = snakemake(["--rulegraph", *config_args(entries)])
-    names = dict(re.findall(r"^\s*(\d+)\[label = \"(\w+)\"", dot, flags=re.M))
-    return [(names[a], names[b]) for a, b in re.findall(r"^\s*(\d+) -> (\d+)", dot, flags=re.M)]
+    return list(rule_graph(snakemake(["--rulegraph", *config_args(entries)])).edges)
 
 
 def parse_entries(entries: Sequence[str]) -> dict[str, Any]:
@@ -163,17 +163,6 @@ def resolve_config(entries: Sequence[str]) -> dict[str, Any]:
 
 
 # --- Reading a run's records --------------------------------------------------------------------
-
-
-def read_benchmark(path: Path) -> tuple[float, float]:
-    """Wall seconds and max RSS [MB] of a benchmark TSV (its first repeat; RSS 0 if absent)."""
-    with open(path) as fh:
-        row = next(csv.DictReader(fh, delimiter="\t"))
-    try:
-        rss = float(row.get("max_rss", "nan"))
-    except ValueError:
-        rss = 0.0
-    return float(row["s"]), 0.0 if math.isnan(rss) else rss
 
 
 def restored_from_cache(workdir: Path, job: Job) -> bool:
@@ -220,7 +209,9 @@ def measured_jobs(
         if restored_from_cache(workdir, job):
             warnings.append(f"{job.rule}: {job.benchmark} was a cache restore, not used")
             continue
-        out[job.rule].append((job, *read_benchmark(path)))
+        bench = read_benchmark(path)
+        rss = bench["max_rss_mb"]
+        out[job.rule].append((job, bench["s"], 0.0 if rss is None or math.isnan(rss) else rss))
     return out, warnings
 
 

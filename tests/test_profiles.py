@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 from tests.conftest import CONFIG_DIR, REPO, SCHEMA
+from tests.toy_workflow import listed_jobs
 
 PROFILE = REPO / "workflow" / "profiles" / "slurm"
 MODELS = 3  # cnn, gru, lstm (workflow/rules/train.smk)
@@ -40,21 +41,6 @@ def _job_counts(text: str) -> dict[str, int]:
             break
         counts[m.group(1)] = int(m.group(2))
     return counts
-
-
-def _jobs(text: str) -> list[dict]:
-    """Rule, wildcards, threads and resources of every job of a dry-run listing."""
-    jobs = []
-    for block in re.split(r"^(?=(?:local)?rule \w+:$)", text, flags=re.M)[1:]:
-        fields = dict(re.findall(r"^    (\w+): (.*)$", block, flags=re.M))
-        wildcards = fields.get("wildcards")
-        jobs.append({
-            "rule": re.match(r"(?:local)?rule (\w+):", block).group(1),
-            "wildcards": dict(w.split("=", 1) for w in wildcards.split(", ")) if wildcards else {},
-            "threads": int(fields.get("threads", 1)),
-            "resources": dict(r.split("=", 1) for r in fields.get("resources", "").split(", ")),
-        })  # fmt: skip
-    return jobs
 
 
 def _expected_counts() -> dict[str, int]:
@@ -123,7 +109,7 @@ def test_profile_rules_exist(profile, env, tmp_path):
 def test_profile_requests_reach_jobs(profile, dry_run):
     """Each job gets the profile's threads and the value of each of its resource expressions
     (first attempt), and every threaded job asks SLURM for one CPU per thread."""
-    jobs = _jobs(dry_run)
+    jobs = listed_jobs(dry_run)
     for rule, requests in profile["set-resources"].items():
         rule_jobs = [j for j in jobs if j["rule"] == rule]
         assert rule_jobs, rule

@@ -17,33 +17,18 @@ from tests.toy_workflow import (
     OBJECT,
     OBJECTS,
     TOY_SYNTHESIS,
+    listed_jobs,
 )
 from tests.toy_workflow import (
     snakemake_run as _snakemake,
 )
-
-JOB_FIELDS = ("output", "log", "benchmark", "wildcards")
-
-
-def _jobs(text: str) -> list[dict]:
-    """The jobs Snakemake printed (dry or real run): rule, outputs, log, benchmark, wildcards."""
-    jobs = []
-    for block in re.split(r"^(?=rule \w+:$|localrule \w+:$)", text, flags=re.M)[1:]:
-        rule = re.match(r"(?:local)?rule (\w+):", block).group(1)
-        job = {"rule": rule}
-        for field in JOB_FIELDS:
-            m = re.search(rf"^    {field}: (.*)$", block, flags=re.M)
-            job[field] = [v.strip() for v in m.group(1).split(",")] if m else []
-        job["wildcards"] = dict(w.split("=", 1) for w in job["wildcards"])
-        jobs.append(job)
-    return jobs
 
 
 def _dry_jobs(workdir: Path, config: list[str], env: dict[str, str], *extra: str) -> list[dict]:
     """The jobs a dry run of the report would run."""
     proc = _snakemake(workdir, "results/report.html", "--dry-run", *config, *extra, env=env)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return _jobs(proc.stdout)
+    return listed_jobs(proc.stdout)
 
 
 def _with(config: list[str], old: str, new: str) -> list[str]:
@@ -385,7 +370,7 @@ def test_reverted_change_is_found_by_content(run):
 
     proc = _snakemake(workdir, "results/report.html", *config, env=env)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    ran = [j for j in _jobs(proc.stdout + proc.stderr) if j["rule"] in EXPENSIVE]
+    ran = [j for j in listed_jobs(proc.stdout + proc.stderr) if j["rule"] in EXPENSIVE]
     assert {"anneal_grasps", "replay_grasps", "train_model", "tune_model"} <= {
         j["rule"] for j in ran
     }

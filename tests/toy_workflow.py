@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -48,3 +49,21 @@ def snakemake_run(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
 
 
+def listed_jobs(text: str) -> list[dict]:
+    """The jobs Snakemake printed (dry or real run): rule; outputs, log and benchmark as lists;
+    wildcards and resources as dicts; threads (1 when not printed)."""
+    jobs = []
+    for block in re.split(r"^(?=(?:local)?rule \w+:$)", text, flags=re.M)[1:]:
+        fields = dict(re.findall(r"^    (\w+): (.*)$", block, flags=re.M))
+
+        def items(name: str, fields: dict = fields) -> list[str]:
+            return [v.strip() for v in fields[name].split(",")] if name in fields else []
+
+        jobs.append({
+            "rule": re.match(r"(?:local)?rule (\w+):", block).group(1),
+            **{name: items(name) for name in ("output", "log", "benchmark")},
+            "wildcards": dict(w.split("=", 1) for w in items("wildcards")),
+            "resources": dict(r.split("=", 1) for r in items("resources")),
+            "threads": int(fields.get("threads", 1)),
+        })  # fmt: skip
+    return jobs

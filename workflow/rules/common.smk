@@ -3,6 +3,7 @@
 import functools
 from pathlib import Path
 
+from graspstab.labels.trim import ms_of
 from graspstab.learning.splits import sample_assignments
 
 from graspstab.config import ConfigError, load_config
@@ -86,11 +87,6 @@ def replay_outputs(kind):
 def object_splits():
     """The split of every object of the run (3.5.1)."""
     return {o: config["objects"]["items"][o]["split"] for o in object_ids()}
-
-
-def ms_of(window_s):
-    """A window length in whole milliseconds (the dataset wildcard)."""
-    return round(1000 * window_s)
 
 
 def sweep_ms():

@@ -11,6 +11,11 @@ import numpy as np
 import polars as pl
 
 
+def ms_of(window_s: float) -> int:
+    """A window length in whole milliseconds: the wildcard that names a trimmed dataset."""
+    return round(1000 * window_s)
+
+
 def trim_same_end(
     index: pl.DataFrame, windows: np.ndarray, window_steps: int
 ) -> tuple[pl.DataFrame, np.ndarray]:

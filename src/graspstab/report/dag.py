@@ -54,10 +54,7 @@ def job_counts(text: str) -> Counter[str]:
 
 def layers(graph: nx.DiGraph) -> dict[str, int]:
     """Each rule's depth: the longest path from a source rule to it (rows of the drawing)."""
-    depth: dict[str, int] = {}
-    for node in nx.topological_sort(graph):
-        depth[node] = max((depth[p] + 1 for p in graph.predecessors(node)), default=0)
-    return depth
+    return {n: r for r, gen in enumerate(nx.topological_generations(graph)) for n in gen}
 
 
 def _with_dummies(graph: nx.DiGraph, depth: Mapping[str, int]) -> tuple[nx.DiGraph, dict]:

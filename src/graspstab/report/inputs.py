@@ -12,12 +12,9 @@ import string
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from graspstab.labels.trim import ms_of
+
 REPORT_RULE = "report"
-
-
-def ms_of(window_s: float) -> int:
-    """A window length in whole milliseconds (the dataset wildcard, as common.smk's ms_of)."""
-    return round(1000 * window_s)
 
 
 def benchmark_wildcards(
