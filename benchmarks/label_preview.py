@@ -4,8 +4,9 @@ Applies the usable-interval rules, timestep labels and predictive labels of
 ``graspstab.labels`` with the default config to every replay under results/replay and prints per
 object: usable grasps, rejected (depth rule), grasps without a valid window, and stable/unstable
 windows at the baseline task (W, O, H = 400, 200, 300), plus how the settle index was found.
+``--require`` picks the settle reading (3.3.1 when one check succeeds: either, or both).
 
-    python benchmarks/label_preview.py <workdir>
+    python benchmarks/label_preview.py <workdir> [--require both]
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import polars as pl
 import yaml
 
 from graspstab.labels.interval import usable_interval
+from graspstab.labels.label_windows import grasp_rng
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
 from graspstab.replay.replay_grasps import trace_key
 
@@ -29,8 +31,11 @@ def main() -> None:
     """Print the per-object counts and the totals."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("workdir", type=Path)
+    ap.add_argument("--require", choices=("either", "both"), default=None)
     args = ap.parse_args()
     lab = yaml.safe_load((CONFIG / "labels" / "default.yaml").read_text())
+    if args.require:
+        lab["settle"]["require"] = args.require
     dt = yaml.safe_load((CONFIG / "replay" / "default.yaml").read_text())["timestep"]
     w, o, h = step_counts(lab["window_s"], lab["offset_s"], lab["horizon_s"], dt)
     rules: collections.Counter = collections.Counter()
@@ -50,7 +55,7 @@ def main() -> None:
                 if ui.rejected:
                     row_counts["rejected"] += 1
                     continue
-                rng = np.random.default_rng(row["grasp_id"])
+                rng = grasp_rng(0, row["object"], row["grasp_id"])  # the dataset's (seed 0)
                 starts = window_starts(ui.settle_index, ui.contact_end, w, o, h,
                                        lab["windows_per_grasp"], rng)  # fmt: skip
                 if not len(starts):

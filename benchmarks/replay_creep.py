@@ -1,14 +1,17 @@
-"""Creep of held objects under the replay's contact settings (3.2, DESIGN.md "simulation facts").
+"""Creep of held objects under each named contact model (3.2, DESIGN.md "simulation facts").
 
-Two parts, both printed per contact setting (cone, impratio, noslip iterations):
+Two parts, printed per contact model (config/contact/: reference, strict) and, for the analytic
+part, for the solver settings in between:
 
-* the analytic scene of the tests: a 0.2 kg box squeezed by two position-driven fingertips with
-  5 N (held) or 0.3 N (too weak, friction 1: it must fall); mean |v_z| over the second half of
-  4 s after gravity is switched on;
-* with ``--workdir``, the quick profile's real grasps of some objects: how many are still held
-  after ``--seconds`` and the median speed of the held ones over the last second.
+* the analytic scene of the tests (graspstab.replay.creep.box_creep): a 0.2 kg box squeezed by
+  two position-driven fingertips with 5 N (held) or 0.3 N (too weak, friction 1: it must fall);
+  mean |v_z| over the second half of 4 s after gravity is switched on;
+* with ``--workdir``, a run's real grasps of some objects, replayed with the model's solver
+  options and servo gains (and ``--squeeze``): how many are still held after ``--seconds`` and
+  the median speed of the held ones over the last second.
 
-Target: held objects creep at less than a tenth of the 1.2 mm/s instability threshold (3.3.2).
+Under ``strict`` held objects creep at less than a tenth of the 1.2 mm/s instability threshold
+(3.3.2); under ``reference`` (MuJoCo's defaults) at its order.
 
     python benchmarks/replay_creep.py [--workdir . --objects 061_foam_brick,013_apple]
 """
@@ -22,56 +25,16 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import polars as pl
-import yaml
 
+from graspstab.config import compose_config
+from graspstab.replay.creep import HELD_SQUEEZE, WEAK_SQUEEZE, box_creep, held_creep
 from graspstab.replay.run import run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp
 
-DEFAULTS = Path(__file__).resolve().parents[1] / "config" / "replay" / "default.yaml"
-SETTINGS = [("pyramidal", 1, 0), ("elliptic", 1, 0), ("elliptic", 10, 0), ("elliptic", 100, 0),
-            ("elliptic", 10, 10)]  # fmt: skip
-BOX = """
-<mujoco>
-  <option timestep="0.0005" gravity="0 0 0"/>
-  <worldbody>
-    <body name="tip_a" pos="-0.035 0 0">
-      <joint name="slide_a" type="slide" axis="1 0 0" damping="5"/>
-      <geom type="box" size="0.01 0.015 0.015" mass="0.05"/>
-    </body>
-    <body name="tip_b" pos="0.035 0 0">
-      <joint name="slide_b" type="slide" axis="-1 0 0" damping="5"/>
-      <geom type="box" size="0.01 0.015 0.015" mass="0.05"/>
-    </body>
-    <body name="object"><freejoint/><geom type="box" size="0.02 0.02 0.02" mass="0.2"/></body>
-  </worldbody>
-  <actuator>
-    <position joint="slide_a" kp="1000"/><position joint="slide_b" kp="1000"/>
-  </actuator>
-</mujoco>
-"""
-
-
-def box_creep(cone: str, impratio: float, noslip: int, squeeze: float, seconds: float = 4.0):
-    """Mean |v_z| [m/s] of the squeezed box over the second half of ``seconds`` under gravity."""
-    spec = mujoco.MjSpec.from_string(BOX)
-    spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{cone.upper()}")
-    spec.option.impratio = impratio
-    spec.option.noslip_iterations = noslip
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    model.actuator_forcerange[:] = (-squeeze, squeeze)
-    model.actuator_forcelimited[:] = 1
-    data.ctrl[:] = 0.05
-    for _ in range(400):
-        mujoco.mj_step(model, data)
-    model.opt.gravity[:] = (0.0, 0.0, -9.81)
-    n = int(seconds / model.opt.timestep)
-    vz = np.empty(n)
-    dof = model.jnt_dofadr[model.body("object").jntadr[0]]
-    for i in range(n):
-        mujoco.mj_step(model, data)
-        vz[i] = data.qvel[dof + 2]
-    return float(np.abs(vz[n // 2 :]).mean())
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+MODELS = ("reference", "strict")
+# solver settings between the two models (cone, impratio, noslip iterations)
+BETWEEN = [("elliptic", 1.0, 0), ("elliptic", 10.0, 0), ("elliptic", 100.0, 0)]
 
 
 def grasp_creep(workdir: Path, objects: list[str], params: dict, seconds: float) -> list[str]:
@@ -92,35 +55,43 @@ def grasp_creep(workdir: Path, objects: list[str], params: dict, seconds: float)
             )  # fmt: skip
             run = run_replay(scene.model, data, scene.layout, round(seconds / dt), 1000, 400)
             if run.stop_reason == "completed" and np.isfinite(run.traces["min_distance"][-1]):
-                v = np.linalg.norm(run.traces["velocity"][-round(1.0 / dt) :], axis=1)
-                speeds.append(float(np.median(v)))
+                speeds.append(held_creep(run.traces["velocity"], dt))
         med = f"{np.median(speeds) * 1000:.3f}" if speeds else "n/a"
         out.append(f"{obj}: held {len(speeds)}/{table.height}, creep {med} mm/s")
     return out
 
 
+def _line(name: str, contact: dict) -> str:
+    held = box_creep(contact, HELD_SQUEEZE) * 1000
+    weak = box_creep(contact, WEAK_SQUEEZE, seconds=1.0) * 1000
+    return (
+        f"{name:10s} ({contact['cone']}, impratio {contact['impratio']:g}, noslip "
+        f"{contact['noslip_iterations']}): box held {held:8.4f} mm/s, squeezed too weakly "
+        f"{weak:7.0f} mm/s"
+    )
+
+
 def main() -> None:
-    """Print both parts for every setting in SETTINGS."""
+    """Print both parts for both contact models, the analytic part for the settings between."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workdir", type=Path, default=None)
     ap.add_argument("--objects", default="061_foam_brick,009_gelatin_box,013_apple")
     ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--squeeze", type=float, default=None, help="[rad]; default: the config's")
     args = ap.parse_args()
-    base = yaml.safe_load(DEFAULTS.read_text())
-    for cone, impratio, noslip in SETTINGS:
-        held = box_creep(cone, impratio, noslip, 5.0) * 1000
-        weak = box_creep(cone, impratio, noslip, 0.3, seconds=1.0) * 1000
-        line = (
-            f"{cone:9s} impratio {impratio:5g} noslip {noslip:2d}: box held {held:8.4f} mm/s, "
-            f"box squeezed too weakly {weak:7.0f} mm/s"
-        )
+    for model in MODELS:
+        params = copy.deepcopy(compose_config(CONFIG_DIR, [f"contact={model}"])["replay"])
+        if args.squeeze is not None:
+            params["squeeze"]["angle"] = args.squeeze
+        line = _line(model, params["contact"])
         if args.workdir is not None:
-            params = copy.deepcopy(base)
-            params.update(cone=cone, impratio=float(impratio), noslip_iterations=noslip)
             objects = args.objects.split(",")
             line += "\n    " + "\n    ".join(grasp_creep(args.workdir, objects, params,
                                                           args.seconds))  # fmt: skip
         print(line, flush=True)
+    for cone, impratio, noslip in BETWEEN:
+        contact = {"cone": cone, "impratio": impratio, "noslip_iterations": noslip}
+        print(_line("between", contact), flush=True)
 
 
 if __name__ == "__main__":

@@ -46,21 +46,44 @@ def test_default_object_set_is_reference_split(default_cfg):
 
 def test_reference_constants(default_cfg):
     c = default_cfg
-    # eq. 16, but for our documented w_fc and the added w_hpen (README "Grasp synthesis")
-    assert c["synthesis"]["energy"]["weights"] == {
-        "dis": 100.0,
-        "fc": 0.01,
-        "pen": 10.0,
-        "spen": 100.0,
-        "joint": 1000.0,
-        "hpen": 10000.0,
-    }
+    # eq. 16 exactly in the reference energy; our documented w_fc and the added w_hpen in hpen
+    # (README "Grasp synthesis")
+    eq16 = {"dis": 100.0, "fc": 1.0, "pen": 10.0, "spen": 100.0, "joint": 1000.0, "hpen": 0.0}
+    assert _compose({"energy": "reference"})["synthesis"]["energy"]["weights"] == eq16
+    assert _compose({"energy": "hpen"})["synthesis"]["energy"]["weights"] == dict(
+        eq16, fc=0.01, hpen=10000.0
+    )
     assert c["synthesis"]["annealing"]["iterations"] == 6000
     assert c["replay"]["timestep"] == 0.0005 and c["replay"]["steps"] == 40000
     assert c["labels"]["v_slip"] == 0.0012
     assert c["preprocess"]["hull_points"]["count"] == 2000
     assert c["hand"]["candidates"]["points_per_region"] == 12
     assert c["profile_name"] == "quick"
+
+
+def test_profiles_protocol_choices():
+    """Quick and study deviate by name (our energy, a squeeze), the thesis profile keeps every
+    reference choice, and a group choice on the command line beats a profile's."""
+    quick, thesis, study = (_compose({"profile": p}) for p in ("quick", "thesis", "study"))
+    assert compose_config(CONFIG_DIR, []) == quick  # quick is the default
+    for cfg in (quick, study):
+        assert cfg["synthesis"]["energy"]["name"] == "hpen"
+        assert cfg["replay"]["squeeze"]["angle"] == 0.25
+        assert cfg["synthesis"]["split_shards"] == {"train": None, "val": 4, "test": None}
+    assert thesis["replay"]["contact"]["name"] == "reference"
+    assert thesis["synthesis"]["energy"]["name"] == "reference"
+    assert thesis["replay"]["squeeze"]["angle"] == 0.0
+    assert set(thesis["synthesis"]["split_shards"].values()) == {None}
+    assert all(c["replay"]["contact"]["name"] == "reference" for c in (quick, study))
+    assert _compose({"energy": "reference"})["synthesis"]["energy"]["name"] == "reference"
+    swapped = _compose({"profile": "thesis", "energy": "hpen"})
+    assert swapped["synthesis"]["energy"]["name"] == "hpen"
+    assert _compose({"contact": "strict"})["replay"]["contact"]["cone"] == "elliptic"
+    # the study profile: the whole protocol at reduced counts, >= 3 seeds, sweep 0.01-0.5 s
+    assert len(study["train"]["seeds"]) >= 3 and len(study["sweep"]["seeds"]) >= 3
+    assert min(study["sweep"]["windows_s"]) == 0.01 and max(study["sweep"]["windows_s"]) == 0.5
+    for cfg in (quick, study, thesis):
+        validate_schema(cfg, SCHEMA)
 
 
 def _compose(snakemake_config: dict) -> dict:

@@ -85,6 +85,22 @@ def test_settle_by_neither_falls_back_to_3_s() -> None:
     assert (got.settle_index, got.settle_rule) == (6000, "fallback")
 
 
+def test_settle_reading_both_requires_both_checks() -> None:
+    """settle.require = both: one successful check is not enough, the 3 s fallback applies; when
+    both succeed the two readings agree."""
+    both = dict(P, require="both")
+    assert P["require"] == "either"
+    cases = [(_quiet_after(1000), np.full(N, np.nan)), (np.full(N, 0.05), _dist_settles_at(1500))]
+    for speed, dist in cases:
+        assert usable_interval(speed, dist, DT, P, 0.1).settle_rule in ("speed", "distance")
+        got = usable_interval(speed, dist, DT, both, 0.1)
+        assert (got.settle_index, got.settle_rule) == (6000, "fallback")
+    speed, dist = _quiet_after(2000), _dist_settles_at(1500)
+    assert usable_interval(speed, dist, DT, both, 0.1) == usable_interval(speed, dist, DT, P, 0.1)
+    with pytest.raises(ValueError, match="require"):
+        usable_interval(speed, dist, DT, dict(P, require="one"), 0.1)
+
+
 def test_settle_interval_must_lie_within_the_search() -> None:
     # quiet only from 2.95 s: the 0.1 s interval would end after 3 s
     assert settle_by_speed(_quiet_after(5900), DT, P) is None

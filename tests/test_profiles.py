@@ -45,13 +45,12 @@ def _job_counts(text: str) -> dict[str, int]:
 
 def _expected_counts() -> dict[str, int]:
     """Per-rule job counts of the thesis DAG, from its resolved config."""
-    from graspstab.config import load_config
+    from graspstab.config import load_config, shards_of
 
     cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "thesis"}, check_files=False)
-    objects = len(cfg["objects"]["items"]) if cfg["only_objects"] is None else len(
-        cfg["only_objects"]
-    )  # fmt: skip
-    shards = objects * cfg["synthesis"]["shards"]
+    ids = list(cfg["objects"]["items"]) if cfg["only_objects"] is None else cfg["only_objects"]
+    objects = len(ids)
+    shards = sum(shards_of(cfg, o) for o in ids)
     sweep, splits = cfg["sweep"], cfg["splits"]
     return {
         "preprocess_object": objects,

@@ -7,19 +7,158 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-import yaml
 from conftest import CONFIG_DIR
 
+from graspstab.config import compose_config
 from graspstab.replay.run import run_replay
-from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
+from graspstab.replay.scene import (
+    build_replay_scene,
+    place_grasp,
+    squeeze_targets,
+    to_object_frame,
+)
 
-PARAMS = yaml.safe_load((CONFIG_DIR / "replay" / "default.yaml").read_text())
+
+def _replay(contact: str) -> dict:
+    """The shipped replay group with a contact model (config/contact/), no squeeze (3.2)."""
+    params = compose_config(CONFIG_DIR, [f"contact={contact}"])["replay"]
+    return dict(params, squeeze=dict(params["squeeze"], angle=0.0))
+
+
+PARAMS, REFERENCE = _replay("strict"), _replay("reference")
 G = np.array(PARAMS["gravity"])
 
 
 @pytest.fixture(scope="module")
 def scene(foam_brick_dir: Path, built_hand_dir: Path):
     return build_replay_scene(built_hand_dir, foam_brick_dir, PARAMS)
+
+
+@pytest.fixture(scope="module")
+def reference_scene(foam_brick_dir: Path, built_hand_dir: Path):
+    return build_replay_scene(built_hand_dir, foam_brick_dir, REFERENCE)
+
+
+def test_the_default_contact_model_is_the_reference() -> None:
+    assert compose_config(CONFIG_DIR)["replay"]["contact"] == REFERENCE["contact"]
+    assert REFERENCE["contact"]["name"] == "reference" and PARAMS["contact"]["name"] == "strict"
+
+
+def test_reference_contact_model_is_mujocos_defaults(reference_scene, scene) -> None:
+    """Every solver option of the reference scene equals a model that sets nothing, except the
+    time step (3.2's 5e-4 s) and gravity (off while a grasp is placed, eq. 17 after)."""
+    default = mujoco.MjModel.from_xml_string("<mujoco/>").opt
+    ours = reference_scene.model.opt
+    names = [n for n in dir(default) if not n.startswith("_") and n not in ("timestep", "gravity")]
+    assert {"cone", "impratio", "noslip_iterations", "o_solref", "solver", "iterations"} <= set(
+        names
+    )
+    for name in names:
+        a, b = getattr(default, name), getattr(ours, name)
+        if callable(a):
+            continue
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b), err_msg=name)
+    assert ours.timestep == 0.0005
+    # the strict model does differ, so the comparison can fail
+    assert scene.model.opt.cone != default.cone and scene.model.opt.noslip_iterations == 10
+    # default geom contact parameters (solref, solimp, condim) on the object's collision geoms
+    m = reference_scene.model
+    obj = [g for g in range(m.ngeom)
+           if m.body(m.geom_bodyid[g]).name.startswith("obj_") and m.geom_contype[g]]  # fmt: skip
+    assert obj
+    spec = mujoco.MjSpec()
+    spec.worldbody.add_geom(size=[0.01, 0, 0])
+    plain = spec.compile()
+    for g in obj:
+        np.testing.assert_array_equal(reference_scene.model.geom_solref[g], plain.geom_solref[0])
+        np.testing.assert_array_equal(reference_scene.model.geom_solimp[g], plain.geom_solimp[0])
+        assert reference_scene.model.geom_condim[g] == plain.geom_condim[0] == 3
+
+
+def test_reference_servos_are_the_hand_descriptions(reference_scene, hand_assets_dir) -> None:
+    """kp, kv and force range of every finger servo equal the description's own actuators."""
+    desc = mujoco.MjModel.from_xml_path(str(hand_assets_dir / "v2" / "scene_right.xml"))
+    m = reference_scene.model
+    for i in reference_scene.finger_ctrl:
+        j = desc.actuator(m.actuator(i).name).id
+        np.testing.assert_array_equal(m.actuator_gainprm[i, :3], desc.actuator_gainprm[j, :3])
+        np.testing.assert_array_equal(m.actuator_biasprm[i, :3], desc.actuator_biasprm[j, :3])
+        np.testing.assert_array_equal(m.actuator_forcerange[i], desc.actuator_forcerange[j])
+        # hand.xml stores the limits to 6 significant digits
+        np.testing.assert_allclose(m.actuator_ctrlrange[i], desc.actuator_ctrlrange[j], atol=1e-5)
+
+
+def test_squeeze_moves_targets_in_the_closing_direction_within_limits(scene) -> None:
+    rng = np.random.default_rng(0)
+    lo, hi = scene.ctrl_range[:, 0], scene.ctrl_range[:, 1]
+    closing = scene.closing.astype(bool)
+    assert closing.sum() == 10  # every finger's mcp and pip
+    for angle in (0.0, 0.05, 0.3, 3.0):
+        for _ in range(50):
+            joints = rng.uniform(lo, hi)
+            at_limit = rng.random(16) < 0.2
+            joints[at_limit] = hi[at_limit]
+            t = squeeze_targets(joints, scene.closing, angle, scene.ctrl_range)
+            assert np.all(t[~closing] == joints[~closing])  # the other joints are held
+            assert np.all(t[closing] >= joints[closing])  # never opened
+            assert np.all(t <= hi + 1e-12)  # never past a joint limit
+            expect = np.minimum(joints[closing] + angle, hi[closing])
+            np.testing.assert_allclose(t[closing], expect)
+    with pytest.raises(ValueError, match="squeeze.angle"):
+        squeeze_targets(np.zeros(16), scene.closing, -0.1, scene.ctrl_range)
+
+
+def test_closing_joints_move_the_fingertips_towards_the_grasp_focus(built_hand_dir) -> None:
+    """Increasing each squeezed joint brings its finger's tip geometry closer to the palm's grasp
+    focus (in the open posture and a curled one), so "closing" means what it says."""
+    import json
+
+    hand = json.loads((built_hand_dir / "hand.json").read_text())
+    spec = mujoco.MjSpec.from_file(str(built_hand_dir / "hand.xml"))
+    spec.delete(spec.joint(hand["wrist_joint"]))
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    qadr = [m.joint(j).qposadr[0] for j in hand["joint_names"]]
+    focus = np.asarray(hand["grasp_focus"])
+    tip_geom = {}
+    for f in hand["fingers"]:
+        body = m.body(hand["fingertips"][f]).id
+        tip_geom[f] = next(
+            g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_contype[g]
+        )
+
+    def dist(q: np.ndarray, finger: str) -> float:
+        d.qpos[:] = 0
+        d.qpos[qadr] = q
+        mujoco.mj_kinematics(m, d)
+        return float(np.linalg.norm(d.geom_xpos[tip_geom[finger]] - focus))
+
+    open_pose = np.asarray(compose_config(CONFIG_DIR)["synthesis"]["pregrasp"]["open_joints"])
+    curled = np.array([0.3, 0.6, 0.5, 0.8] + [0.0, 0.8, 0.8] * 4)
+    finger_of = {"t": "thumb", "i": "index", "m": "middle", "r": "ring", "p": "little"}
+    for joint in PARAMS["squeeze"]["joints"]:
+        k = hand["joint_names"].index(joint)
+        finger = finger_of[joint.split("_")[1][0]]
+        for pose in (open_pose, curled):
+            moved = pose.copy()
+            moved[k] += 0.1
+            assert dist(moved, finger) < dist(pose, finger) - 1e-4, (joint, pose)
+
+
+def test_place_grasp_applies_the_squeeze(foam_brick_dir, built_hand_dir) -> None:
+    params = dict(PARAMS, squeeze=dict(PARAMS["squeeze"], angle=0.2))
+    sq = build_replay_scene(built_hand_dir, foam_brick_dir, params)
+    data = mujoco.MjData(sq.model)
+    joints = np.clip(GRASP_JOINTS, sq.ctrl_range[:, 0], sq.ctrl_range[:, 1])
+    place_grasp(sq, data, GRASP_POS, GRASP_QUAT / np.linalg.norm(GRASP_QUAT), joints, G)
+    np.testing.assert_allclose(data.qpos[sq.finger_qpos], joints)
+    np.testing.assert_allclose(
+        data.ctrl[sq.finger_ctrl], squeeze_targets(joints, sq.closing, 0.2, sq.ctrl_range)
+    )
+    assert (data.ctrl[sq.finger_ctrl] > joints + 1e-9).sum() >= 8
+    bad = dict(PARAMS, squeeze={"angle": 0.1, "joints": ["right_x-mcp"]})
+    with pytest.raises(ValueError, match="right_x-mcp"):
+        build_replay_scene(built_hand_dir, foam_brick_dir, bad)
 
 
 def _far_pose() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -144,6 +144,7 @@ def test_headline_names_missing_artefacts(tmp_path: Path) -> None:
     rows = headline_rows(tmp_path / "studies")
     assert len(rows) == 8
     assert all(r[2].startswith("undefined (") and "not produced" in r[2] for r in rows)
+    assert all(r[4] == "undefined" for r in rows)
     assert [r[3] for r in rows] == [
         "98.43 ± 0.05 %", "97.78 ± 0.07 %", "96.27 %", "98.03 %", "98.34 %", "98.41 %",
         "97.14 ± 2.49 %", "98.747 ± 0.022 %",
@@ -163,9 +164,28 @@ def test_scale_sentence_warns_in_bold_for_quick_runs() -> None:
     assert "3 objects" in text and "48 candidate grasps" in text and "10 usable grasps" in text
     assert "100 train / 30 val / 45 test windows" in text and "2 training seeds (42, 43)" in text
     assert "at most 8 epochs" in text and "4 Optuna trials" in text
-    assert re.search(r"<b>Quick-profile numbers are a smoke test[^<]*not a reproduction", text)
+    assert re.search(r"<b>Quick-profile numbers come from a reduced scale[^<]*not a reproduction",
+                     text)  # fmt: skip
+    assert "The test split is 11.1 % unstable" in text  # 5 of 45, the chance AUPRC
     thesis = scale_sentence({**scale, "profile": "thesis"})
-    assert "smoke test" not in thesis and "reference's scale" in thesis
+    assert "reduced scale" not in thesis and "reference's scale" in thesis
+    # the protocol's deviations are named (here: none given, so unknown names count as such)
+    full = load_config(REPO / "config", SCHEMA, check_files=False)
+    proto = run_scale(full, 3, [], dataset)["protocol"]
+    assert proto["contact"] == "reference" and proto["energy"] == "hpen"
+    assert proto["deviations"] == ["energy hpen (w_fc 0.01 and E_hpen)", "a 0.25 rad squeeze"]
+    ref = run_scale(load_config(REPO / "config", SCHEMA, {"profile": "thesis"},
+                                check_files=False), 3, [], dataset)["protocol"]  # fmt: skip
+    assert ref["deviations"] == [] and "the reference's choices throughout" in scale_sentence(
+        {**scale, "protocol": ref})
+
+
+def test_headline_gap_column() -> None:
+    from graspstab.report.headline import Figure, gap_text
+
+    assert gap_text(Figure(0.9), "98.43 ± 0.05 %") == "-8.43"
+    assert gap_text(Figure(0.99, digits=3), "98.747 ± 0.022 %") == "+0.253"
+    assert gap_text(Figure(reason="x"), "96.27 %") == "undefined"
 
 
 # -------------------------------------------------------------------------------- funnel
@@ -373,7 +393,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
     r = root / "results"
     figs = {k: _png(r / "figures" / f"{k}.png", i) for i, k in enumerate(
         ["objects", "hand_candidates", "hand_capsules", "pregrasp", "grasp_gallery",
-         "energy_histograms", "replay_trace", "window"])}  # fmt: skip
+         "energy_histograms", "replay_trace", "window", "unstable_speeds"])}  # fmt: skip
     learning = {k: _png(r / "figures" / "learning" / f"{k}.png", 20 + i)
                 for i, k in enumerate(["benchmark", "confusion", "objects", "splits", "sweep",
                                        "latency", "operating_points", "threshold_transfer",
@@ -410,6 +430,13 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
     dataset = {"window_s": 0.2, "windows": 165, "objects": objects,
                "splits": {s: objects[o][s] for o, s in OBJECTS.items()}}  # fmt: skip
     write_json(r / "datasets" / "baseline" / "summary.json", dataset)
+    contact = load_config(REPO / "config", SCHEMA, check_files=False)["replay"]["contact"]
+    none = {"n": 0, "q10": None, "q50": None, "q90": None}
+    write_json(r / "datasets" / "speeds.json", {
+        "contact_model": contact["name"], "contact": contact, "v_slip": 0.0012,
+        "box_creep": {"squeeze_n": 5.0, "speed": 0.0071}, "held_creep": {**none, "grasps": 0},
+        "target_speed": {"stable": {"n": 3, "q10": 1e-4, "q50": 2e-4, "q90": 5e-4},
+                         "unstable": none}, "units": "m/s"})  # fmt: skip
     for ms in (10, 20):
         write_json(r / "datasets" / "sweep" / f"w{ms}ms" / "summary.json",
                    {**dataset, "window_s": ms / 1000})  # fmt: skip
@@ -442,6 +469,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         "summary.json", "sweep_summaries": sorted(r.glob("datasets/sweep/*/summary.json")),
         "learning_results": r, "learning_figures": learning, "rule_benchmarks": bench,
         "rulegraph": graphs["rulegraph"], "jobgraph": graphs["dag"],
+        "speeds_summary": r / "datasets" / "speeds.json",
     }  # fmt: skip
 
 
@@ -482,7 +510,7 @@ def test_report_has_every_section_and_decodable_images(report_html: Path) -> Non
     assert order == sorted(order)  # contents, headline and DAG overview come first
     images = _images(html)
     # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree)
-    assert len(images) == 20
+    assert len(images) == 21
     for data in images:
         with Image.open(io.BytesIO(data)) as img:
             img.load()
@@ -494,7 +522,7 @@ def test_report_has_every_section_and_decodable_images(report_html: Path) -> Non
 
 def test_synthetic_report_headline_and_provenance(synthetic_report: Path) -> None:
     html = synthetic_report.read_text()
-    assert "<b>Quick-profile numbers are a smoke test" in html
+    assert "<b>Quick-profile numbers come from a reduced scale" in html
     assert "12 candidate grasps annealed, 9 usable grasps" in html
     # validation never slips: the tuned-pick row is defined, the proxy's is our number
     assert "<td>55.00 %</td><td>96.27 %</td>" in html
@@ -575,9 +603,17 @@ def test_benchmark_inputs_match_the_dag(snakemake_graphs: dict[str, Path]) -> No
     n = len(sample_assignments(splits, config["splits"]["count"], config["splits"]["sample_seed"]))
     wildcards = benchmark_wildcards(config, list(splits), n, FAMILIES)
     counts = dag.job_counts(snakemake_graphs["dag"].read_text())
-    expected = {rule: math.prod(len(v) for v in values.values())
+    expected = {rule: len(values) if isinstance(values, list) else
+                math.prod(len(v) for v in values.values())
                 for rule, values in wildcards.items()}  # fmt: skip
     assert expected == {rule: counts[rule] for rule in wildcards}
+    # the quick profile's validation objects have more shards (synthesis.split_shards)
+    per_object = {}
+    for combo in wildcards["anneal_grasps"]:
+        per_object[combo["object"]] = per_object.get(combo["object"], 0) + 1
+    assert {o: n for o, n in per_object.items() if splits[o] == "val"} == {
+        "013_apple": 4, "010_potted_meat_can": 4}
+    assert {n for o, n in per_object.items() if splits[o] != "val"} == {2}
 
 
 def test_benchmark_inputs_expand_patterns() -> None:
@@ -589,6 +625,12 @@ def test_benchmark_inputs_expand_patterns() -> None:
         {"anneal_grasps": {"object": ["x", "y"], "shard": [0, 1]}},
     )  # fmt: skip
     shards = [f"b/anneal_grasps/{o}_shard_{k}.tsv" for o in "xy" for k in (0, 1)]
+    explicit = benchmark_inputs(
+        [("anneal_grasps", "b/anneal_grasps/{object}_shard_{shard}.tsv")],
+        {"anneal_grasps": [{"object": "x", "shard": 0}, {"object": "y", "shard": 2}]},
+    )
+    assert explicit["benchmark_anneal_grasps"] == [
+        "b/anneal_grasps/x_shard_0.tsv", "b/anneal_grasps/y_shard_2.tsv"]
     assert got == {
         "benchmark_anneal_grasps": shards,
         "benchmark_build_hand": ["b/build_hand/hand.tsv"],

@@ -13,6 +13,7 @@ import yaml
 from conftest import CONFIG_DIR
 
 from graspstab.common.io import read_parquet_metadata
+from graspstab.config import compose_config
 from graspstab.synthesis.anneal_grasps import (
     DIAGNOSTIC_COLUMNS,
     ENERGY_COLUMNS,
@@ -27,7 +28,8 @@ from graspstab.synthesis.pregrasp import sample_pregrasps
 from graspstab.synthesis.rotation import quat_to_matrix, rot6d_to_matrix
 from graspstab.synthesis.summarise_grasps import summarise_grasps
 
-DEFAULTS = yaml.safe_load((CONFIG_DIR / "synthesis" / "default.yaml").read_text())
+# the shipped synthesis group with our energy, so that every term (E_hpen too) is exercised
+DEFAULTS = compose_config(CONFIG_DIR, ["energy=hpen"])["synthesis"]
 OBJECT = "061_foam_brick"
 
 

@@ -16,6 +16,7 @@ from tests.conftest import REPO
 from tests.toy_workflow import (
     OBJECT,
     OBJECTS,
+    TOY_REPLAY,
     TOY_SYNTHESIS,
     listed_jobs,
 )
@@ -145,8 +146,9 @@ def test_report_is_self_contained(run):
     # no external requests: no http(s) sources or stylesheets
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
-    # objects, hand x2, pre-grasp, gallery, histograms, replay, window + 11 learning figures
-    assert len(images) == 8 + 11 + 1
+    # objects, hand x2, pre-grasp, gallery, histograms, replay, speeds, window + 11 learning
+    # figures + the rule graph
+    assert len(images) == 9 + 11 + 1
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -157,6 +159,57 @@ def test_second_run_does_nothing(run):
     proc = _snakemake(workdir, "results/report.html", "--dry-run", *config, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "Nothing to be done" in proc.stdout + proc.stderr
+
+
+# The documented alternatives of the replay protocol (README "Replay protocols") against the quick
+# profile's choices: the strict contact model, no squeeze and the settle reading `both` in one
+# whole run; eq. 16's energy in a second run through replay and labelling. Replays of 4 s: the
+# reading `both` needs the distance check, whose reference median lies at 2.8-3 s (3.3.1), so 1 s
+# replays would all fall back to 3 s and give no window.
+ALT_REPLAY = "replay={steps: 8000, chunk_steps: 1000, squeeze: {angle: 0.0}}"
+ALTERNATIVES = ["contact=strict", "labels={settle: {require: both}}"]
+
+
+@pytest.mark.workflow
+def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
+    """The whole DAG runs with the strict model, no squeeze and the `both` reading, and each shows
+    in what it made: the replays' metadata, the settle rules and the report. Eq. 16's energy
+    runs through annealing, replay and labelling. Preprocessing comes from the toy run's cache."""
+    import polars as pl
+
+    from graspstab.common.io import read_parquet_metadata
+
+    workdir, env, config = run
+    env = dict(env, GRASPSTAB_CACHE_DIR=str(workdir / ".graspstab-cache"))
+    alt = tmp_path / "alt"
+    proc = _snakemake(alt, "results/report.html", *_with(config, TOY_REPLAY, ALT_REPLAY),
+                      *ALTERNATIVES, env=env)  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    log = (alt / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").read_text()
+    assert log.startswith("graspstab cache: restored")
+    meta = read_parquet_metadata(alt / "results" / "replay" / OBJECT / "replays_0.parquet")
+    assert meta["contact_model"] == "strict" and meta["squeeze_rad"] == 0.0
+    assert meta["mujoco_version"] and meta["provenance"]["params"]["contact"]["impratio"] == 10.0
+    speeds = json.loads((alt / "results" / "datasets" / "speeds.json").read_text())
+    assert speeds["contact_model"] == "strict"
+    assert speeds["box_creep"]["speed"] < 0.1 * speeds["v_slip"]  # strict: creep-free
+    html = (alt / "results" / "report.html").read_text()
+    assert "strict" in html and 'id="contact-model"' in html and 'id="unstable-speeds"' in html
+    index = pl.read_parquet(alt / "results" / "datasets" / "baseline" / "index.parquet")
+    assert set(index["split"]) == {"train", "val", "test"}
+    # the default run used the quick profile's choices: reference contact model, 0.25 rad squeeze
+    base = read_parquet_metadata(workdir / "results" / "replay" / OBJECT / "replays_0.parquet")
+    assert base["contact_model"] == "reference" and base["squeeze_rad"] == 0.25
+    base_speeds = json.loads((workdir / "results" / "datasets" / "speeds.json").read_text())
+    assert base_speeds["box_creep"]["speed"] > speeds["v_slip"]  # reference: creeps
+    # eq. 16's energy (the quick profile uses ours): annealing, replay and labelling
+    ref = tmp_path / "ref_energy"
+    proc = _snakemake(ref, "results/datasets/speeds.json", *config, "energy=reference", env=env)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    grasps = read_parquet_metadata(ref / "results" / "grasps" / OBJECT / "shard_0.parquet")
+    assert grasps["provenance"]["params"]["energy"]["name"] == "reference"
+    assert grasps["provenance"]["params"]["energy"]["weights"]["hpen"] == 0.0
+    assert (ref / "results" / "datasets" / "baseline" / "index.parquet").is_file()
 
 
 @pytest.mark.workflow
@@ -236,9 +289,11 @@ def test_annealing_parameter_reruns_from_annealing_on(run):
     rules = {j["rule"] for j in jobs}
     anneal = {(j["wildcards"]["object"], j["wildcards"]["shard"]) for j in jobs
               if j["rule"] == "anneal_grasps"}  # fmt: skip
-    objects = {"061_foam_brick", "014_lemon", "077_rubiks_cube"}
-    assert anneal == {(o, s) for o in objects for s in ("0", "1")}
-    assert sum(j["rule"] == "replay_grasps" for j in jobs) == 6
+    # two shards each (toy synthesis), four for the validation object (the quick profile's
+    # synthesis.split_shards)
+    shards = {"061_foam_brick": 2, "014_lemon": 4, "077_rubiks_cube": 2}
+    assert anneal == {(o, str(k)) for o, n in shards.items() for k in range(n)}
+    assert sum(j["rule"] == "replay_grasps" for j in jobs) == 8
     assert {"label_windows", "train_model", "tune_model", "report"} <= rules
     assert not rules & {"preprocess_object", "build_hand", "fetch_ycb_object",
                         "fetch_hand_description", "plot_objects", "plot_hand"}  # fmt: skip
@@ -255,7 +310,8 @@ def test_adding_an_object_runs_only_its_jobs_plus_downstream(run):
     assert {j["rule"] for j in per_object} == {
         "fetch_ycb_object", "preprocess_object", "anneal_grasps", "replay_grasps",
         "summarise_grasps"}  # fmt: skip
-    assert sum(j["rule"] == "anneal_grasps" for j in per_object) == 2  # its two shards
+    # a validation object: the quick profile's split_shards gives it four shards
+    assert sum(j["rule"] == "anneal_grasps" for j in per_object) == 4
     rules = {j["rule"] for j in jobs}
     assert "build_hand" not in rules
     assert {"label_windows", "aggregate_baseline", "report"} <= rules  # downstream aggregation

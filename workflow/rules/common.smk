@@ -6,7 +6,7 @@ from pathlib import Path
 from graspstab.labels.trim import ms_of
 from graspstab.learning.splits import sample_assignments
 
-from graspstab.config import ConfigError, load_config
+from graspstab.config import ConfigError, load_config, shards_of
 
 _raw_overrides = dict(config)
 try:
@@ -47,18 +47,16 @@ def object_outputs(name):
 
 
 def synthesis_params():
-    """What a shard's result depends on: everything in the synthesis group but the shard count
+    """What a shard's result depends on: everything in the synthesis group but the shard counts
     (adding shards must not rerun the existing ones)."""
-    return {k: v for k, v in config["synthesis"].items() if k != "shards"}
+    return {k: v for k, v in config["synthesis"].items() if k not in ("shards", "split_shards")}
 
 
 def shard_tables_of(objects):
-    """Every shard table of the given objects."""
-    return expand(
-        "results/grasps/{object}/shard_{shard}.parquet",
-        object=objects,
-        shard=range(config["synthesis"]["shards"]),
-    )
+    """Every shard table of the given objects (synthesis.shards, or the split's split_shards)."""
+    return [
+        f"results/grasps/{o}/shard_{k}.parquet" for o in objects for k in range(shards_of(config, o))
+    ]
 
 
 def shard_tables(wildcards):
@@ -77,11 +75,11 @@ def grasp_outputs(name):
 def replay_outputs(kind):
     """Every replay table (kind "replays", .parquet) or trace file (kind "traces", .npz)."""
     ext = "parquet" if kind == "replays" else "npz"
-    return expand(
-        f"results/replay/{{object}}/{kind}_{{shard}}.{ext}",
-        object=object_ids(),
-        shard=range(config["synthesis"]["shards"]),
-    )
+    return [
+        f"results/replay/{o}/{kind}_{k}.{ext}"
+        for o in object_ids()
+        for k in range(shards_of(config, o))
+    ]
 
 
 def object_splits():

@@ -92,3 +92,29 @@ rule plot_window:
         "results/benchmarks/plot_window/window.tsv"
     script:
         "../scripts/plot_window.py"
+
+
+rule plot_unstable_speeds:
+    input:
+        index=rules.label_windows.output.index,
+        tables=replay_outputs("replays"),
+        traces=replay_outputs("traces"),
+    output:
+        summary="results/datasets/speeds.json",
+        figure="results/figures/unstable_speeds.png",
+    params:
+        contact=config["replay"]["contact"],
+        labels=config["labels"],
+        dt=config["replay"]["timestep"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/plot_unstable_speeds/speeds.log",
+    benchmark:
+        "results/benchmarks/plot_unstable_speeds/speeds.tsv"
+    script:
+        "../scripts/plot_unstable_speeds.py"

@@ -85,6 +85,8 @@ rule report:
         replay_trace=rules.plot_replay.output[0],
         dataset_summary=rules.label_windows.output.summary,
         window_figure=rules.plot_window.output[0],
+        speeds_summary=rules.plot_unstable_speeds.output.summary,
+        speeds_figure=rules.plot_unstable_speeds.output.figure,
         sweep_summaries=expand("results/datasets/sweep/w{ms}ms/summary.json", ms=sweep_ms()),
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,

@@ -25,6 +25,7 @@ write_report(
         "energy_histograms": Path(sm.input.histograms),
         "replay_trace": Path(sm.input.replay_trace),
         "window": Path(sm.input.window_figure),
+        "unstable_speeds": Path(sm.input.speeds_figure),
     },
     object_meta=[Path(p) for p in sm.input.meta],
     hand_json=Path(sm.input.hand_json),
@@ -39,4 +40,5 @@ write_report(
     rule_benchmarks=benchmarks,
     rulegraph=Path(sm.input.rulegraph),
     jobgraph=Path(sm.input.jobgraph),
+    speeds_summary=Path(sm.input.speeds_summary),
 )

@@ -11,6 +11,7 @@ from graspstab.config.validate import validate_config
 
 __all__ = [
     "ConfigError",
+    "shards_of",
     "compose_config",
     "load_config",
     "split_snakemake_config",
@@ -29,3 +30,12 @@ def load_config(
     cfg = compose_config(config_dir, overrides, values)
     validate_config(cfg, schema_path, check_files=check_files)
     return cfg
+
+
+def shards_of(config: dict[str, Any], object_id: str) -> int:
+    """Annealing shards of one object: ``synthesis.shards``, or its split's entry in
+    ``synthesis.split_shards`` (validation and test hold two objects each against eight in
+    training, so a small run can give them more grasps per object)."""
+    split = config["objects"]["items"][object_id]["split"]
+    syn = config["synthesis"]
+    return int((syn.get("split_shards") or {}).get(split) or syn["shards"])

@@ -3,9 +3,10 @@
 All indices are trace rows (row t = the state before step t, dt apart). ``dist`` is d_t with NaN
 where no hand-object contact exists; ``speed`` is ||v_t||.
 
-Where only one of the two settle checks succeeds, the reference is silent; we take the one that
-succeeded (it has found a quiet interval, and waiting for the other, which never comes, would
-mean the 3 s fallback that is meant for replays where neither check finds one).
+Where only one of the two settle checks succeeds, the reference is silent. Two readings, chosen
+by ``settle.require``: ``either`` takes the one that succeeded (it has found a quiet interval, and
+the 3 s fallback is meant for replays where neither check finds one); ``both`` requires both and
+otherwise falls back to 3 s (the later of two indices exists only when both do).
 """
 
 from __future__ import annotations
@@ -72,8 +73,13 @@ def usable_interval(speed: np.ndarray, dist: np.ndarray, dt: float, p: dict[str,
     """Settle index (the later of the two checks; the 3 s fallback when neither succeeds),
     depth rejection and contact end (3.3.1) of one replay."""
     by_speed, by_dist = settle_by_speed(speed, dt, p), settle_by_distance(dist, dt, p)
+    require = p["require"]
+    if require not in ("either", "both"):
+        raise ValueError(f"labels.settle.require must be 'either' or 'both', got {require!r}")
     if by_speed is not None and by_dist is not None:
         settle, rule = max(by_speed, by_dist), "both"
+    elif require == "both" and (by_speed is not None or by_dist is not None):
+        settle, rule = steps_of(p["search_s"], dt), "fallback"
     elif by_speed is not None:
         settle, rule = by_speed, "speed"
     elif by_dist is not None:

@@ -122,6 +122,9 @@ def replay_grasps(
         "simulated_s": simulated,
         "steps_per_s": simulated / dt / elapsed if elapsed > 0 else None,
         "frame": "object frame (centre of mass, +z up); row t = state before step t",
+        "contact_model": params["contact"]["name"],
+        "squeeze_rad": float(params["squeeze"]["angle"]),
+        "mujoco_version": mujoco.__version__,
         "provenance": provenance("replay", params),
     }
     write_parquet(summary_path, table, metadata=meta)

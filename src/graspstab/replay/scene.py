@@ -32,12 +32,16 @@ class ReplayScene:
     object_qpos: int  # address of the object's free joint in qpos (position, then quaternion)
     finger_qpos: np.ndarray  # (16,) qpos addresses, hand.json joint order
     finger_ctrl: np.ndarray  # (16,) actuator ids, same order
+    ctrl_range: np.ndarray  # (16, 2) servo target range [rad] (the joint limits), same order
+    closing: np.ndarray  # (16,) 1 for the joints the squeeze closes, else 0, same order
+    squeeze: float  # [rad] servo targets moved this far past the grasp's angles (0: 3.2 as is)
 
 
 def build_replay_scene(
     hand_dir: str | Path, object_dir: str | Path, params: dict[str, Any]
 ) -> ReplayScene:
-    """Hand (free wrist joint removed) plus the object's body, options and gains from ``params``."""
+    """Hand (free wrist joint removed) plus the object's body; solver options and servo gains
+    from the contact model ``params["contact"]``, the squeeze from ``params["squeeze"]``."""
     hand_dir, object_dir = Path(hand_dir), Path(object_dir)
     hand = read_json(hand_dir / "hand.json")
     spec = mujoco.MjSpec.from_file(str(hand_dir / "hand.xml"))
@@ -53,15 +57,24 @@ def build_replay_scene(
         object_body,
         int(params["contact_slots"]),
     )
+    contact = params["contact"]
     opt = spec.option
     opt.timestep = float(params["timestep"])
-    opt.cone = CONES[params["cone"]]
-    opt.impratio = float(params["impratio"])
-    opt.noslip_iterations = int(params["noslip_iterations"])
+    opt.cone = CONES[contact["cone"]]
+    opt.impratio = float(contact["impratio"])
+    opt.noslip_iterations = int(contact["noslip_iterations"])
     opt.gravity = [0.0, 0.0, 0.0]
     model = spec.compile()
-    act = params["actuator"]
+    act = contact["actuator"]
     ctrl = np.array([model.actuator(a).id for a in hand["actuator_names"]])
+    joints = list(hand["joint_names"])
+    unknown = sorted(set(params["squeeze"]["joints"]) - set(joints))
+    if unknown:
+        raise ValueError(
+            f"replay.squeeze.joints names {unknown}, which are not finger joints of "
+            f"{hand_dir / 'hand.json'}; valid names: {', '.join(joints)}"
+        )
+    closing = np.array([float(j in params["squeeze"]["joints"]) for j in joints])
     kp, kv = float(act["kp"]), float(act["kv"])
     model.actuator_gainprm[ctrl, 0] = kp
     model.actuator_biasprm[ctrl, 1] = -kp
@@ -74,7 +87,24 @@ def build_replay_scene(
         object_qpos=int(model.jnt_qposadr[joint]),
         finger_qpos=np.array([model.joint(j).qposadr[0] for j in hand["joint_names"]]),
         finger_ctrl=ctrl,
+        ctrl_range=model.actuator_ctrlrange[ctrl].copy(),
+        closing=closing,
+        squeeze=float(params["squeeze"]["angle"]),
     )
+
+
+def squeeze_targets(
+    joints: np.ndarray, closing: np.ndarray, angle: float, ctrl_range: np.ndarray
+) -> np.ndarray:
+    """Servo targets ``angle`` [rad] past the grasp's ``joints`` along each closing joint's
+    closing (increasing) direction, never past its upper limit and never opened; other joints
+    keep their angles. Angle 0 gives the grasp's own angles (3.2)."""
+    joints = np.asarray(joints, dtype=np.float64)
+    if angle < 0 or not np.isfinite(angle):
+        raise ValueError(f"replay.squeeze.angle must be a finite angle >= 0 [rad], got {angle}")
+    target = joints + angle * np.asarray(closing, dtype=np.float64)
+    upper = np.maximum(np.asarray(ctrl_range)[:, 1], joints)  # a grasp beyond a limit stays put
+    return np.minimum(target, upper)
 
 
 def hand_frame(wrist_pos: np.ndarray, wrist_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -93,7 +123,8 @@ def place_grasp(
     gravity: np.ndarray,
 ) -> None:
     """Reset ``data`` to a grasp: object at its pose relative to the hand, fingers at their
-    angles and targets; evaluated without gravity (3.2), then gravity switched on (hand frame)."""
+    angles, targets at their angles plus the squeeze; evaluated without gravity (3.2), then
+    gravity switched on (hand frame)."""
     model = scene.model
     mujoco.mj_resetData(model, data)
     rot, pos = hand_frame(wrist_pos, wrist_quat)
@@ -103,7 +134,9 @@ def place_grasp(
     mujoco.mju_negQuat(quat, np.asarray(wrist_quat, dtype=np.float64))
     data.qpos[a + 3 : a + 7] = quat / np.linalg.norm(quat)
     data.qpos[scene.finger_qpos] = joints
-    data.ctrl[scene.finger_ctrl] = joints
+    data.ctrl[scene.finger_ctrl] = squeeze_targets(
+        joints, scene.closing, scene.squeeze, scene.ctrl_range
+    )
     model.opt.gravity[:] = 0.0
     mujoco.mj_forward(model, data)
     model.opt.gravity[:] = rot.T @ np.asarray(gravity, dtype=np.float64)

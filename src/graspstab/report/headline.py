@@ -5,6 +5,7 @@ from a reproduction. An undefined value prints as "undefined" with its reason, n
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,16 +156,45 @@ HEADLINE: list[tuple[str, str, str, Callable[[Path], Figure]]] = [
 ]  # fmt: skip
 
 
+def gap_text(figure: Figure, reference: str) -> str:
+    """This run's mean minus the reference's (as printed), in percentage points, or why not."""
+    ref = re.match(r"\s*([0-9.]+)", reference)
+    if not finite(figure.mean) or ref is None:
+        return UNDEFINED
+    return f"{100 * float(figure.mean) - float(ref.group(1)):+.{figure.digits}f}"
+
+
 def headline_rows(studies: Path | None) -> list[list[str]]:
-    """[section, quantity, this run, reference] for every headline figure (``studies``: the
-    results' studies directory, None when the report was given no learning results)."""
+    """[section, quantity, this run, reference, run - reference in points] for every headline
+    figure (``studies``: the results' studies directory, None when the report was given no
+    learning results)."""
 
-    def value(fig: Callable[[Path], Figure]) -> str:
+    def figure(fig: Callable[[Path], Figure]) -> Figure:
         if studies is None:
-            return Figure(reason="no learning results given to the report").text()
-        return fig(Path(studies)).text()
+            return Figure(reason="no learning results given to the report")
+        return fig(Path(studies))
 
-    return [[sec, what, value(fig), ref] for sec, what, ref, fig in HEADLINE]
+    rows = []
+    for sec, what, ref, fig in HEADLINE:
+        got = figure(fig)
+        rows.append([sec, what, got.text(), ref, gap_text(got, ref)])
+    return rows
+
+
+def protocol_of(config: Mapping[str, Any]) -> dict[str, Any]:
+    """The replay protocol's named choices (issue 13) and which of them deviate from the
+    reference (reference contact model, eq. 16's energy, no squeeze)."""
+    contact = config.get("replay", {}).get("contact", {}).get("name", "?")
+    energy = config.get("synthesis", {}).get("energy", {}).get("name", "?")
+    squeeze = float(config.get("replay", {}).get("squeeze", {}).get("angle", 0.0))
+    settle = config.get("labels", {}).get("settle", {}).get("require", "?")
+    deviations = [
+        *([f"contact model {contact}"] if contact != "reference" else []),
+        *([f"energy {energy} (w_fc 0.01 and E_hpen)"] if energy != "reference" else []),
+        *([f"a {squeeze:g} rad squeeze"] if squeeze > 0 else []),
+    ]
+    return {"contact": contact, "energy": energy, "squeeze": squeeze, "settle": settle,
+            "deviations": deviations}  # fmt: skip
 
 
 def run_scale(
@@ -187,7 +217,12 @@ def run_scale(
         "seeds": list(train.get("seeds", [])),
         "max_epochs": train.get("max_epochs"),
         "trials": tune.get("trials"),
-    }
+        "protocol": protocol_of(config),
+        "test_unstable_share": (
+            splits["test"]["unstable"] / max(1, windows["test"])
+            if dataset and "test" in splits and windows["test"] else None
+        ),
+    }  # fmt: skip
 
 
 def scale_sentence(scale: Mapping[str, Any]) -> str:
@@ -206,19 +241,37 @@ def scale_sentence(scale: Mapping[str, Any]) -> str:
         f"{'s' if len(seeds) != 1 else ''} ({', '.join(map(str, seeds))}), at most "
         f"{scale['max_epochs']} epochs, {scale['trials']} Optuna trials per family. "
     )
+    proto = scale.get("protocol")
+    if proto is not None:
+        dev = proto["deviations"]
+        text += (
+            f"Replay protocol: contact model <b>{H.esc(proto['contact'])}</b>, energy "
+            f"<b>{H.esc(proto['energy'])}</b>, squeeze {proto['squeeze']:g} rad, settle reading "
+            f"'{H.esc(proto['settle'])}'; "
+            + (f"deviations from the reference: {H.esc(', '.join(dev))} (README \"Replay "
+               "protocols\" gives what each changes). " if dev else
+               "the reference's choices throughout. ")
+        )  # fmt: skip
+    chance = scale.get("test_unstable_share")
+    if chance is not None:
+        text += (
+            f"The test split is {100 * chance:.1f} % unstable: the AUPRC of a scorer that knows "
+            "nothing. "
+        )
     if scale["profile"] == "thesis":
         return text + "This is the reference's scale: the figures below are comparable to it."
     return text + (
-        f"<b>{H.esc(str(scale['profile']).capitalize())}-profile numbers are a smoke test of "
-        "the pipeline, not a "
-        "reproduction of the reference's results.</b>"
+        f"<b>{H.esc(str(scale['profile']).capitalize())}-profile numbers come from a reduced "
+        "scale (fewer grasps, windows, seeds, epochs and trials than the reference's 43,978 "
+        "training windows, 5 seeds and 40 epochs): they are not a reproduction of the "
+        "reference's results, and the last column says how far they are from it.</b>"
     )
 
 
 def headline_section(scale: Mapping[str, Any], studies: Path | None) -> str:
     """The scale sentence and the table of this run's figures beside the reference's."""
     return f'<p class="note">{scale_sentence(scale)}</p>' + H.table(
-        ["section", "figure", "this run", "reference (thesis)"],
+        ["section", "figure", "this run", "reference (thesis)", "run - reference [points]"],
         headline_rows(studies),
         caption="Headline figures: this run beside the reference's published numbers "
         "(percent; 'undefined' gives the reason a value could not be computed)",

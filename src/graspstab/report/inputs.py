@@ -12,6 +12,7 @@ import string
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from graspstab.config import shards_of
 from graspstab.labels.trim import ms_of
 
 REPORT_RULE = "report"
@@ -19,11 +20,12 @@ REPORT_RULE = "report"
 
 def benchmark_wildcards(
     config: Mapping[str, Any], objects: Sequence[str], assignments: int, models: Sequence[str]
-) -> dict[str, dict[str, list]]:
+) -> dict[str, dict[str, list] | list[dict[str, Any]]]:
     """Wildcard values, in this run, of every rule whose benchmark path has wildcards. A rule's
     jobs are only known from the DAG, so they are restated here; the report sets these counts
-    beside the --dag job counts, where a stale entry shows up as 'DAG: n'."""
-    shards = list(range(config["synthesis"]["shards"]))
+    beside the --dag job counts, where a stale entry shows up as 'DAG: n'. A rule's entry is a
+    mapping of value lists (every combination) or a list of explicit combinations."""
+    shards = [{"object": o, "shard": k} for o in objects for k in range(shards_of(config, o))]
     sweep = [ms_of(w) for w in config["sweep"]["windows_s"]]
     # trimmed datasets: the sweep's windows plus the tuning and split studies' own
     windows = sorted({*sweep, *(ms_of(config[s]["window_s"]) for s in ("tune", "splits"))})
@@ -31,9 +33,9 @@ def benchmark_wildcards(
     return {
         "fetch_ycb_object": {"object": objects},
         "preprocess_object": {"object": objects},
-        "anneal_grasps": {"object": objects, "shard": shards},
+        "anneal_grasps": shards,
         "summarise_grasps": {"object": objects},
-        "replay_grasps": {"object": objects, "shard": shards},
+        "replay_grasps": shards,
         "trim_sweep_window": {"ms": windows},
         "train_model": {"model": models, "seed": list(config["train"]["seeds"])},
         "tune_model": {"model": models},
@@ -69,7 +71,10 @@ def benchmark_inputs(
                 "to benchmark_wildcards() in src/graspstab/report/inputs.py"
             )
         values = wildcards.get(rule, {})
-        combos = itertools.product(*(values[f] for f in fields))
+        if isinstance(values, list):  # explicit combinations (e.g. per-object shard counts)
+            combos = [tuple(v[f] for f in fields) for v in values]
+        else:
+            combos = itertools.product(*(values[f] for f in fields))
         out[f"benchmark_{rule}"] = [
             pattern.format(**dict(zip(fields, combo, strict=True))) for combo in combos
         ]

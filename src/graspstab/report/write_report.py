@@ -32,7 +32,8 @@ REPO_DIR = Path(graspstab.__file__).resolve().parents[2]
 # Every id a reader (or a link) may rely on, in the reference's order (tested to be present).
 SECTION_IDS = (
     "contents", "headline", "pipeline", "objects", "hand", "hand-candidates", "hand-capsules",
-    "synthesis", "pregrasp", "grasp-gallery", "replay", "replay-trace", "datasets", "window",
+    "synthesis", "pregrasp", "grasp-gallery", "replay", "replay-trace", "contact-model",
+    "unstable-speeds", "datasets", "window",
     "dataset-counts", "learning", "tuning", "baseline-configurations", "metrics", "confusion",
     "per-object", "split-robustness", "sweep", "latency", "operating-points", "errors",
     "threshold-transfer", "reliability", "proxy", "provenance", "stage-times", "funnel",
@@ -230,6 +231,59 @@ def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path])
     ]
 
 
+def _contact_parts(
+    speeds: Path | None, figures: dict[str, Path], replay: dict[str, Any]
+) -> list[str]:
+    """The contact model in use, its creep, and the speeds behind the labels (3.2, 3.3.2)."""
+    c, sq = replay["contact"], replay["squeeze"]
+    rows = [
+        ["contact model", c["name"]],
+        ["friction cone", c["cone"]],
+        ["impratio", f"{c['impratio']:g}"],
+        ["noslip iterations", c["noslip_iterations"]],
+        ["servo kp [N m/rad] / kv / force range [N m]",
+         f"{c['actuator']['kp']:g} / {c['actuator']['kv']:g} / ±{c['actuator']['forcerange']:g}"],
+        ["squeeze [rad]", f"{sq['angle']:g}" + (" (3.2 holds the grasp's own angles)"
+                                                  if sq["angle"] == 0 else
+                                                  " (our deviation: 3.2 holds the grasp's own "
+                                                  "angles)")],
+    ]  # fmt: skip
+    parts = [H.heading(3, "contact-model", "Contact model and what \"unstable\" means")]
+    if speeds is not None:
+        s = read_json(speeds)
+
+        def mm(v: Any) -> str:
+            return "undefined (none)" if v is None else f"{v * 1e3:.3g}"
+
+        held, tgt = s["held_creep"], s["target_speed"]
+        rows += [
+            [f"creep of a 0.2 kg box held with {s['box_creep']['squeeze_n']:g} N per side [mm/s]",
+             mm(s["box_creep"]["speed"])],
+            [f"creep of this run's grasps held at the end, median of {held['grasps']} [mm/s]",
+             mm(held["q50"])],
+            ["instability threshold v_slip (eq. 23) [mm/s]", mm(s["v_slip"])],
+            [f"unstable windows ({tgt['unstable']['n']}): target-interval speed q10 / q50 / q90 "
+             "[mm/s]", " / ".join(mm(tgt["unstable"][q]) for q in ("q10", "q50", "q90"))],
+            [f"stable windows ({tgt['stable']['n']}): target-interval speed q10 / q50 / q90 "
+             "[mm/s]", " / ".join(mm(tgt["stable"][q]) for q in ("q10", "q50", "q90"))],
+        ]  # fmt: skip
+    parts.append(H.table(["", "value"], rows, cls="text", caption=(
+        "The replay's contact model (config group contact: reference = MuJoCo's defaults with "
+        "the hand description's servos; strict = elliptic cones, impratio 10, 10 noslip "
+        "iterations, kp 20). Under reference a held object creeps at the order of v_slip, so "
+        "part of what is labelled unstable is soft-contact creep; python "
+        "benchmarks/replay_creep.py measures both models.")))  # fmt: skip
+    parts.append(
+        H.image(figures["unstable_speeds"], "speeds behind the labels", (
+            "Median object speed over each labelled window's target interval, by label, with "
+            "v_slip and the contact model's creep."), "unstable-speeds",
+            "Speeds behind the labels")
+        if "unstable_speeds" in figures
+        else H.missing_figure("unstable-speeds", "Speeds behind the labels", "Not produced.")
+    )  # fmt: skip
+    return parts
+
+
 def _dataset_parts(
     baseline: Path | None, sweep: list[Path] | None, figures: dict[str, Path]
 ) -> list[str]:
@@ -403,6 +457,7 @@ def write_report(
     rule_benchmarks: Mapping[str, Sequence[Path]] | None = None,
     rulegraph: Path | None = None,
     jobgraph: Path | None = None,
+    speeds_summary: Path | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced (the learning section from
     ``learning_results``, the results directory, when given). ``benchmark_files`` are the
@@ -451,6 +506,7 @@ def write_report(
         ),
         *_synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         *_replay_parts(replay_summaries, figures),
+        *(_contact_parts(speeds_summary, figures, config["replay"]) if replay_summaries else []),
         *_dataset_parts(dataset_summary, sweep_summaries, figures),
         *([learning_section(results, learning_figures or {}, config)] if results else []),
         *_provenance_parts(
