@@ -182,46 +182,29 @@ def test_run_replay_chunking_and_determinism() -> None:
 # creep under the configured contact settings (issue: < 1/10 of 1.2 mm/s when held)
 
 
-def _creep(cone: str, impratio: float, noslip: int, squeeze: float, seconds: float) -> float:
-    spec = mujoco.MjSpec.from_string(SCENE)
-    spec.option.cone = getattr(mujoco.mjtCone, f"mjCONE_{cone.upper()}")
-    spec.option.impratio = impratio
-    spec.option.noslip_iterations = noslip
-    model = spec.compile()
-    data = mujoco.MjData(model)
-    model.actuator_forcerange[:] = (-squeeze, squeeze)
-    data.ctrl[:] = 0.05
-    for _ in range(400):
-        mujoco.mj_step(model, data)
-    model.opt.gravity[:] = (0.0, 0.0, -G)
-    n = int(seconds / model.opt.timestep)
-    vz = np.empty(n)
-    dof = model.jnt_dofadr[model.body("object").jntadr[0]]
-    for i in range(n):
-        mujoco.mj_step(model, data)
-        vz[i] = data.qvel[dof + 2]
-    return float(np.abs(vz[n // 2 :]).mean())
-
-
-def _settings(model: str) -> tuple[str, float, int]:
+def _contact(model: str) -> dict:
     from conftest import CONFIG_DIR
 
     from graspstab.config import compose_config
 
-    c = compose_config(CONFIG_DIR, [f"contact={model}"])["replay"]["contact"]
-    return c["cone"], c["impratio"], c["noslip_iterations"]
+    return compose_config(CONFIG_DIR, [f"contact={model}"])["replay"]["contact"]
 
 
 def test_strict_contacts_hold_without_creep_and_failing_grasps_still_slide() -> None:
-    settings = _settings("strict")
-    assert _creep(*settings, SQUEEZE, 3.0) < 0.1 * 0.0012  # [m/s]
-    assert _creep(*settings, 0.3, 0.5) > 0.1  # squeezed too weakly: it falls
+    """graspstab.replay.creep.box_creep (the report's creep figure) under the strict model: the
+    box held with 5 N per side (10 N of friction against 1.96 N) barely moves."""
+    from graspstab.replay.creep import box_creep
+
+    assert box_creep(_contact("strict"), SQUEEZE, 3.0) < 0.1 * 0.0012  # [m/s]
+    assert box_creep(_contact("strict"), 0.3, 0.5) > 0.1  # squeezed too weakly: it falls
 
 
 def test_reference_contacts_creep_at_the_order_of_the_instability_threshold() -> None:
     """MuJoCo's defaults (the reference model): the same squeezed box creeps above 1.2 mm/s
     (eq. 23) itself, so under this model creep is part of what "unstable" means."""
-    settings = _settings("reference")
-    assert settings == ("pyramidal", 1.0, 0)
-    assert _creep(*settings, SQUEEZE, 3.0) > 0.0012
-    assert _creep(*settings, 0.3, 0.5) > 0.1
+    from graspstab.replay.creep import box_creep
+
+    c = _contact("reference")
+    assert (c["cone"], c["impratio"], c["noslip_iterations"]) == ("pyramidal", 1.0, 0)
+    assert box_creep(c, SQUEEZE, 3.0) > 0.0012
+    assert box_creep(c, 0.3, 0.5) > 0.1
