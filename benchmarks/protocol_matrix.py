@@ -5,8 +5,9 @@ settle reading) and labels them with the baseline task (3.3), without writing tr
 measurement behind the choice of the quick profile's defaults (README "Replay protocols").
 
 A variant is a comma-separated list of ``key=value``: ``contact=reference|strict``,
-``squeeze=<rad>``, ``require=either|both``, ``seconds=<replay length>``. Objects run in
-parallel (``--jobs``); each prints one line per object, then a summary per variant:
+``squeeze=<rad>`` (0 when not given, whatever the profile sets), ``require=either|both``,
+``seconds=<replay length>``. Objects run in parallel (``--jobs``); each prints one line per
+object, then a summary per variant:
 
     python benchmarks/protocol_matrix.py --workdir <wd> --variants contact=reference \\
         contact=reference,squeeze=0.1 contact=strict
@@ -39,8 +40,8 @@ def variant_config(spec: str) -> tuple[dict[str, Any], dict[str, Any], dict[str,
     overrides = [f"contact={pairs['contact']}"] if "contact" in pairs else []
     cfg = compose_config(CONFIG_DIR, overrides)
     replay, labels = copy.deepcopy(cfg["replay"]), copy.deepcopy(cfg["labels"])
-    if "squeeze" in pairs:
-        replay["squeeze"]["angle"] = float(pairs["squeeze"])
+    # explicit: no squeeze unless given (3.2), whatever the default profile sets
+    replay["squeeze"]["angle"] = float(pairs.get("squeeze", 0.0))
     if "require" in pairs:
         labels["settle"]["require"] = pairs["require"]
     if "seconds" in pairs:
