@@ -1,4 +1,4 @@
-"""Creep of a statically held object under a contact model (3.2; DESIGN.md "simulation facts").
+"""Creep of a statically held object under a contact model (3.2; README "Grasp replay").
 
 MuJoCo's soft contacts let a held object slide slowly by design; whether that creep is far below
 eq. 23's 1.2 mm/s or of its order decides what "unstable" means. Two measurements:
