@@ -1,4 +1,4 @@
-"""Annealing throughput at the thesis settings, against a one-grasp-at-a-time reference (DESIGN.md).
+"""Annealing throughput at thesis settings against a one-grasp-at-a-time reference (docs/design.md).
 
 Prints candidate grasps per second of the batched annealer (6000 iterations, 120 contact
 candidates, 2000 penetration points by default) run as the workflow runs it on 2 cores (two

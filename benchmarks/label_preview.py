@@ -22,7 +22,7 @@ import yaml
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.label_windows import grasp_rng
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
-from graspstab.replay.replay_grasps import trace_key
+from graspstab.replay.traces import trace_key
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
 

@@ -1,4 +1,4 @@
-"""Creep of held objects under each named contact model (3.2, DESIGN.md "simulation facts").
+"""Creep of held objects under each named contact model (3.2; docs/design.md, contact model).
 
 Two parts, printed per contact model (config/contact/: reference, strict) and, for the analytic
 part, for the solver settings in between:

@@ -17,7 +17,7 @@ import numpy as np
 import polars as pl
 
 from graspstab.common.runs import earliest_run
-from graspstab.replay.replay_grasps import trace_key
+from graspstab.replay.traces import trace_key
 
 
 def deep_for(dist: np.ndarray, depth: float, steps: int) -> bool:

@@ -1,4 +1,4 @@
-"""Replay throughput: the replay stage against raw ``mj_step`` on the same scene (DESIGN.md).
+"""Replay throughput: the replay stage against raw ``mj_step`` on the same scene (docs/design.md).
 
 For each grasp of a shard table, in one run: the replay as the stage runs it (chunked rollout,
 sensors, stop rules), then the same placed grasp stepped by a plain ``mj_step`` loop for the same

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
 import resource
 import statistics
 import subprocess
@@ -28,21 +27,12 @@ from typing import Any
 
 import numpy as np
 
+from graspstab.common.provenance import cpu_model
+
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE_TRAIN = 43_978  # training windows of the reference's fixed split (thesis 4.1.1)
 REFERENCE_VAL = 12_052
 PER = 10_000  # windows per scaled figure
-
-
-def cpu_model() -> str:
-    """The CPU's model name from /proc/cpuinfo (the platform's processor string elsewhere)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def synthetic_dataset(root: Path, train: int, val: int, steps: int, seed: int = 0) -> Path:

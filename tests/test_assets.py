@@ -39,6 +39,8 @@ needs_shared_hand = pytest.mark.usefixtures("hand_assets_dir")
 FOAM = "061_foam_brick"
 FOAM_SHA = "04a5b79997a874638c3ad71044b1ed50fae16148f9bd29629fe37caab3a71d86"
 OBJ_BYTES = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+# a user's own mesh must be a hand-held size (5 mm to 0.5 m; tests/test_objects_mesh_file.py)
+OWN_OBJ_BYTES = b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"
 STL = "v2/models/assets/right/A.stl"
 
 
@@ -157,13 +159,13 @@ def test_ycb_local_missing_file(tmp_path: Path) -> None:
 
 def test_ycb_mesh_override(tmp_path: Path) -> None:
     own = tmp_path / "my_mesh.obj"
-    own.write_bytes(OBJ_BYTES)
+    own.write_bytes(OWN_OBJ_BYTES)
     dest = tmp_path / "out" / FOAM
     record = fetch_ycb_object(
-        FOAM, dest, local_dir=tmp_path / "unused", sha256=sha(OBJ_BYTES), mesh_override=own
+        FOAM, dest, local_dir=tmp_path / "unused", sha256=sha(OWN_OBJ_BYTES), mesh_override=own
     )
-    assert (dest / "textured.obj").read_bytes() == OBJ_BYTES
-    assert record["method"] == "mesh_override" and record["sha256"] == sha(OBJ_BYTES)
+    assert (dest / "textured.obj").read_bytes() == OWN_OBJ_BYTES
+    assert record["method"] == "mesh_override" and record["sha256"] == sha(OWN_OBJ_BYTES)
     assert record["source"] == str(own.resolve()) and record["verified"] is True
 
     with pytest.raises(AssetError, match="checksum") as err:

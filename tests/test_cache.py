@@ -15,8 +15,8 @@ from graspstab.common.cache import (
     content_digest,
     job_key,
     run_cached,
-    stage_closure,
 )
+from graspstab.common.provenance import module_closure
 
 
 class Namedlist(list):
@@ -173,6 +173,21 @@ def test_directory_digest_and_stage_closure(tmp_path):
     first = content_digest(d)
     (d / "meshes" / "a.stl").write_bytes(b"2")
     assert content_digest(d) != first
-    # learning imports labels, which imports replay and hand: a change there must reach the key
-    assert {"learning", "labels", "replay", "hand", "common"} <= set(stage_closure(["learning"]))
-    assert stage_closure(["objects"]) == ["common", "objects"]
+    # learning reads datasets through labels, which reads traces through replay's trace module:
+    # a change there must reach the key; replay's engine and another stage's figure must not
+    learning = set(module_closure(["learning"]))
+    assert {"labels/label_windows.py", "labels/interval.py", "replay/traces.py",
+            "common/io.py", "learning/train.py", "__init__.py"} <= learning  # fmt: skip
+    assert not {"replay/scene.py", "replay/figure.py", "hand/figure.py"} & learning
+    assert not any(f.startswith("labels/") for f in module_closure(["replay"]))
+    objects = module_closure(["objects"])
+    assert all(f.startswith(("objects/", "assets/", "common/", "__init__")) for f in objects)
+
+
+def test_module_closure_follows_function_level_and_relative_imports():
+    # labels.figure imports replay.figure at module level; replay.figure's own closure reaches
+    # hand.names (FINGERS) but nothing of labels
+    assert "hand/names.py" in module_closure(["replay/figure"])
+    assert "replay/figure.py" in module_closure(["labels/figure"])
+    with pytest.raises(ValueError, match="no graspstab sub-package"):
+        module_closure(["no_such_stage"])

@@ -45,3 +45,75 @@ def test_code_version_names_stage():
     assert code_version("objects") != code_version("hand")
     with pytest.raises(ValueError):
         code_version("no_such_stage")
+
+
+def _truncate(path, keep: float = 0.5) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * keep)])
+
+
+def test_corrupt_artefacts_name_their_path_and_the_fix(tmp_path):
+    import numpy as np
+    import polars as pl
+
+    from graspstab.common.io import (
+        UnreadableArtefact,
+        load_npy,
+        load_npz,
+        read_parquet,
+        save_npy,
+        save_npz,
+        write_parquet,
+    )
+    from graspstab.replay.traces import read_traces, trace_key
+
+    rng = np.random.default_rng(0)
+    table, npz, npy, js = (tmp_path / n for n in ("t.parquet", "a.npz", "w.npy", "s.json"))
+    write_parquet(table, pl.DataFrame({"x": rng.random(5000)}))
+    save_npz(npz, **{trace_key(3, "normal"): rng.random((4000, 5)).astype(np.float32)})
+    save_npy(npy, rng.random((100, 4)).astype(np.float32))
+    write_json(js, {"a": list(range(100))})
+    # intact files read back
+    assert read_parquet(table).height == 5000 and load_npy(npy).shape == (100, 4)
+    assert read_traces(npz, 3, ("normal",))["normal"].shape == (4000, 5)
+    readers = [(table, read_parquet), (npz, load_npz), (npy, load_npy), (js, read_json),
+               (npz, lambda p: read_traces(p, 3, ("normal",)))]  # fmt: skip
+    for path in {p for p, _ in readers}:
+        _truncate(path)
+    for path, reader in readers:
+        with pytest.raises(UnreadableArtefact) as err:
+            reader(path)
+        msg = str(err.value)
+        assert str(path) in msg and "truncated?" in msg and "Delete it and rerun" in msg
+    # a missing file is not "corrupt": it keeps its own error
+    with pytest.raises(FileNotFoundError):
+        read_parquet(tmp_path / "absent.parquet")
+
+
+def test_save_figure_is_atomic(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from graspstab.common.io import save_figure
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1])
+    target = tmp_path / "f.png"
+    save_figure(target, fig, dpi=50)
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(ValueError):
+        save_figure(tmp_path / "g.png", fig, format="no_such_format")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.png"]
+    plt.close(fig)
+
+
+def test_provenance_records_the_compute_platform():
+    from graspstab.common.provenance import provenance
+
+    record = provenance("objects", {"a": 1})["platform"]
+    assert record["cpu_count"] == os.cpu_count() and record["machine"]
+    # numpy's BLAS is always loaded: its build and thread count are what reorder reductions
+    assert any(lib["internal_api"] in {"openblas", "mkl", "blis", "accelerate"}
+               for lib in record["blas"])  # fmt: skip

@@ -187,3 +187,63 @@ def test_only_objects_must_be_in_set():
 def test_load_config_with_shared_assets(ycb_dir: Path):
     cfg = load_config(CONFIG_DIR, SCHEMA, {"assets": {"ycb_dir": str(ycb_dir)}})
     assert cfg["assets"]["ycb_dir"] == str(ycb_dir)
+
+
+# Bad values a user can type, as `snakemake --config` hands them over (YAML BaseLoader: every
+# leaf a string): each must fail at load time, naming the field(s).
+@pytest.mark.parametrize(
+    ("override", "named"),
+    [
+        ({"labels": {"label_low": "0.7", "label_high": "0.3"}}, ["labels.label_low", "label_high"]),
+        ({"labels": {"label_low": "0.5", "label_high": "0.5"}}, ["labels.label_low"]),
+        ({"labels": {"v_slip": ".nan"}}, ["labels.v_slip = nan"]),
+        ({"labels": {"horizon_s": ".inf"}}, ["labels.horizon_s = inf"]),
+        ({"synthesis": {"annealing": {"temperature_start": "1.0", "temperature_end": "1000.0"}}},
+         ["temperature_start", "temperature_end"]),
+        ({"synthesis": {"pregrasp": {"standoff": ["0.10", "0.06"]}}},
+         ["synthesis.pregrasp.standoff"]),
+        ({"train": {"seeds": ["42", "42"]}}, ["train.seeds", "[42]"]),
+        ({"splits": {"seeds": ["1", "2", "1"]}}, ["splits.seeds"]),
+        ({"sweep": {"windows_s": ["0.01", "0.0101"]}}, ["sweep.windows_s", "10 ms"]),
+        ({"sweep": {"windows_s": ["0.0004", "0.01"]}}, ["sweep.windows_s", "millisecond"]),
+        ({"tune": {"window_s": "0.8"}}, ["tune.window_s", "sweep.windows_s"]),
+        ({"splits": {"window_s": "0.6"}}, ["splits.window_s", "sweep.windows_s"]),
+        ({"tune": {"space": {"common": {"dropout": {"low": "0.5", "high": "0.1"}}}}},
+         ["tune.space.common.dropout"]),
+        ({"only_objects": "014_lemon"}, ["only_objects", "[014_lemon]"]),
+    ],
+)  # fmt: skip
+def test_bad_values_fail_at_load_time_naming_the_field(override, named):
+    with pytest.raises(ConfigError) as err:
+        load_config(CONFIG_DIR, SCHEMA, override, check_files=False)
+    for text in named:
+        assert text in str(err.value)
+
+
+def test_relation_checks_accept_the_profiles():
+    for profile in ("quick", "study", "thesis"):
+        load_config(CONFIG_DIR, SCHEMA, {"profile": profile}, check_files=False)
+
+
+def test_duplicate_object_id_names_the_file_and_the_fix(tmp_path):
+    import shutil
+
+    tree = tmp_path / "config"
+    shutil.copytree(CONFIG_DIR, tree)
+    path = tree / "objects" / "ycb12.yaml"
+    path.write_text(path.read_text().replace(
+        "items:\n", "items:\n  014_lemon:\n    split: train\n    mass: 0.029\n", 1))  # fmt: skip
+    with pytest.raises(ConfigError) as err:
+        compose_config(tree, [])
+    msg = str(err.value)
+    assert "ycb12.yaml" in msg and "014_lemon" in msg and "appears twice" in msg
+
+
+def test_non_obj_mesh_is_refused_at_load_time(default_cfg, tmp_path):
+    stl = tmp_path / "lemon.stl"
+    stl.write_bytes(b"solid lemon\nendsolid lemon\n")
+    bad = _with_entry(default_cfg, "014_lemon", mesh=str(stl))
+    with pytest.raises(ConfigError) as err:
+        validate_config(bad, SCHEMA)
+    msg = str(err.value)
+    assert "014_lemon" in msg and "'mesh'" in msg and str(stl) in msg and "OBJ" in msg

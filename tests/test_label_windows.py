@@ -12,7 +12,7 @@ from conftest import CONFIG_DIR
 
 from graspstab.common.io import save_npz
 from graspstab.labels.label_windows import label_windows, load_windows
-from graspstab.replay.replay_grasps import trace_key
+from graspstab.replay.traces import trace_key
 
 LABELS = yaml.safe_load((CONFIG_DIR / "labels" / "default.yaml").read_text())
 DT = 0.0005
@@ -31,18 +31,23 @@ def _trace(slip_at: int, loss_at: int, scale: float, rng: np.random.Generator) -
             "normal": normal, "shear": shear}  # fmt: skip
 
 
-def _write_replays(root: Path, object_id: str, shard: int, traces: dict[int, dict]) -> Path:
+def _write_replays(
+    root: Path, object_id: str, shard: int, traces: dict[int, dict]
+) -> tuple[Path, Path]:
     rows = [{"grasp_id": g, "object": object_id, "shard": shard, "diverged": False}
             for g in traces]  # fmt: skip
     table = root / object_id / f"replays_{shard}.parquet"
     table.parent.mkdir(parents=True, exist_ok=True)
     pl.DataFrame(rows).write_parquet(table)
-    save_npz(root / object_id / f"traces_{shard}.npz",
+    # the traces live apart from the table, under another name: label_windows must read the
+    # declared file, not one derived from the table's path
+    trace_file = root / "elsewhere" / f"{object_id}_{shard}_forces.npz"
+    save_npz(trace_file,
              **{trace_key(g, c): v for g, tr in traces.items() for c, v in tr.items()})  # fmt: skip
-    return table
+    return table, trace_file
 
 
-def _replays(tmp_path: Path, test_scale: float) -> list[Path]:
+def _replays(tmp_path: Path, test_scale: float) -> list[tuple[Path, Path]]:
     rng = np.random.default_rng(0)
     return [
         _write_replays(tmp_path, "obj_train", 0, {0: _trace(6000, 10000, 1.0, rng),
@@ -62,7 +67,7 @@ def test_dataset_windows_labels_splits_and_normalisation(tmp_path: Path) -> None
     assert (per_grasp["split"] == 1).all() and (per_grasp["len"] <= 20).all()
     assert dict(zip(index["object"], index["split"], strict=True)) == splits
     # windows are the trace slices [start, start + W) of (normal, shear)
-    with np.load(tmp_path / "obj_train" / "traces_0.npz") as npz:
+    with np.load(tmp_path / "elsewhere" / "obj_train_0_forces.npz") as npz:
         row = index.filter(pl.col("grasp_id") == 0).row(3, named=True)
         expect = np.stack([npz[trace_key(0, c)] for c in ("normal", "shear")], -1)
         np.testing.assert_array_equal(windows[row["sample_id"]], expect[row["start"]:row["end"]])

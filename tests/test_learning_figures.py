@@ -17,13 +17,17 @@ import pytest
 
 from graspstab.common.io import write_json, write_parquet
 from graspstab.learning import figures, studies
+from graspstab.learning.artefacts import StudyArtefacts
 from graspstab.learning.metrics import (
     binary_metrics,
     per_object_metrics,
     select_threshold,
     threshold_grid,
 )
-from graspstab.report.learning import learning_section, pct
+from graspstab.learning.presentation import FIGURES, LEARNING_FIGURES
+from graspstab.report.learning import CAPTIONS, FIGURE_ANCHORS, learning_section
+from graspstab.report.learning_tables import pct
+from tests.study_layout import study_artefacts
 
 FAMILIES = ("cnn", "gru", "lstm")
 PARAMS = {"cnn": 176_833, "gru": 169_473, "lstm": 23_681}
@@ -228,7 +232,12 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def written(results: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    return figures.plot_learning(results, tmp_path_factory.mktemp("figures"), 60, SEEDS[0])
+    return figures.plot_learning(
+        study_artefacts(results, first_seed=SEEDS[0]),
+        tmp_path_factory.mktemp("figures"),
+        60,
+        SEEDS[0],
+    )
 
 
 def test_synthetic_tree_has_undefined_validation(results: Path) -> None:
@@ -248,9 +257,10 @@ def test_every_figure_is_a_nontrivial_png(written: dict[str, Path]) -> None:
 
 
 def test_missing_artefacts_give_placeholders(tmp_path: Path) -> None:
-    out = figures.plot_learning(tmp_path / "empty", tmp_path / "figs", 50, 42)
-    for path in out.values():
-        assert mpimg.imread(path).shape[0] > 50
+    for artefacts in (study_artefacts(tmp_path / "empty"), StudyArtefacts()):
+        out = figures.plot_learning(artefacts, tmp_path / "figs", 50, 42)
+        for path in out.values():
+            assert mpimg.imread(path).shape[0] > 50
 
 
 def test_nan_bar_is_marked_undefined() -> None:
@@ -293,7 +303,7 @@ def test_operating_points_with_no_defined_auprc(tmp_path: Path) -> None:
 def test_section_embeds_figures_references_and_warning(
     results: Path, written: dict[str, Path]
 ) -> None:
-    html = learning_section(results, written, {"profile_name": "quick"})
+    html = learning_section(study_artefacts(results), written, {"profile_name": "quick"})
     assert html.count('src="data:image/png;base64,') == len(figures.FIGURES)
     for ref in (
         "178,753",
@@ -317,11 +327,113 @@ def test_section_embeds_figures_references_and_warning(
 
 
 def test_section_without_results_says_so(tmp_path: Path) -> None:
-    html = learning_section(tmp_path, {}, {})
-    assert "Not produced in this run" in html and "<img" not in html
+    for artefacts in (study_artefacts(tmp_path), StudyArtefacts()):
+        html = learning_section(artefacts, {}, {})
+        assert "Not produced in this run" in html and "<img" not in html
 
 
 def test_pct_formats_nan_as_undefined() -> None:
     assert pct(float("nan")) == "undefined"
     assert pct(0.9843, 0.0005) == "98.43 ± 0.05 %"
     assert pct(0.9, float("nan")) == "90.00 ± undefined %"
+
+
+# --------------------------------------------------------- one figure list, declared inputs
+
+
+def test_figure_names_are_one_list_and_match_the_written_files(
+    written: dict[str, Path], tmp_path: Path
+) -> None:
+    """LEARNING_FIGURES is the figures', the report's and rule plot_learning's list: the files
+    plot_learning writes are exactly its names (no stray temporary file of an atomic write)."""
+    assert figures.FIGURES is FIGURES and list(FIGURES) == list(LEARNING_FIGURES)
+    assert set(FIGURE_ANCHORS) == set(CAPTIONS) == set(LEARNING_FIGURES)
+    out_dir = {p.parent for p in written.values()}
+    assert len(out_dir) == 1
+    assert sorted(p.name for p in out_dir.pop().iterdir()) == sorted(FIGURES.values())
+    assert {n: p.name for n, p in written.items()} == FIGURES
+    train = (Path(__file__).resolve().parents[1] / "workflow" / "rules" / "train.smk").read_text()
+    assert "from graspstab.learning.presentation import FIGURES as LEARNING_FIGURE_FILES" in train
+    assert "LEARNING_FIGURES = [" not in train  # no second list in the workflow
+    # named outputs, as the rule gives them: every name, and no other
+    named = {n: tmp_path / "named" / f"x_{n}.png" for n in LEARNING_FIGURES}
+    got = figures.plot_learning(StudyArtefacts(), named, 40, 42)
+    assert got == named and all(p.exists() for p in named.values())
+    with pytest.raises(ValueError, match="writes exactly"):
+        figures.plot_learning(StudyArtefacts(), {"benchmark": tmp_path / "b.png"}, 40, 42)
+
+
+def _record_reads(monkeypatch: pytest.MonkeyPatch, roots: list[Path]) -> list[Path]:
+    """Every Parquet and text file read below ``roots`` from now on."""
+    reads: list[Path] = []
+    read_parquet, read_text = pl.read_parquet, Path.read_text
+
+    def note(path: Any) -> None:
+        p = Path(path).resolve()
+        if any(p.is_relative_to(r.resolve()) for r in roots):
+            reads.append(p)
+
+    def parquet(source: Any, *args: Any, **kwargs: Any) -> pl.DataFrame:
+        note(source)
+        return read_parquet(source, *args, **kwargs)
+
+    def text(self: Path, *args: Any, **kwargs: Any) -> str:
+        note(self)
+        return read_text(self, *args, **kwargs)
+
+    monkeypatch.setattr(pl, "read_parquet", parquet)
+    monkeypatch.setattr(Path, "read_text", text)
+    return reads
+
+
+def _given(a: StudyArtefacts) -> set[Path]:
+    paths = [getattr(a, f) for f in a.__dataclass_fields__]
+    flat = [p for v in paths for p in (v.values() if isinstance(v, dict) else [v])]
+    return {Path(p).resolve() for p in flat if p is not None}
+
+
+def test_readers_read_only_the_paths_they_are_given(
+    results: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """plot_learning and the report's learning section read the given paths and nothing else:
+    artefacts present in the tree but not given are not read, and a corrupt results/ tree in
+    the working directory (a decoy for any walk of 'results') is never touched."""
+    decoy = tmp_path / "results"
+    for rel in ("studies/latency.parquet", "studies/baseline/runs.parquet", "tune/gru/best.json"):
+        (decoy / rel).parent.mkdir(parents=True, exist_ok=True)
+        (decoy / rel).write_text("corrupt")
+    monkeypatch.chdir(tmp_path)
+    full = study_artefacts(results, first_seed=SEEDS[0])
+    given = StudyArtefacts(
+        **{
+            **{f: getattr(full, f) for f in full.__dataclass_fields__},
+            "latency": None,  # on disk in the tree, not given
+            "trials": {f: p for f, p in full.trials.items() if f != "gru"},
+            "best": {f: p for f, p in full.best.items() if f != "gru"},
+        }
+    )
+    reads = _record_reads(monkeypatch, [results, tmp_path])
+    out = figures.plot_learning(given, tmp_path / "figs", 40, SEEDS[0])
+    html = learning_section(given, out, {"profile_name": "quick"})
+    assert reads and set(reads) <= _given(given), sorted(set(reads) - _given(given))
+    assert (results / "studies" / "latency.parquet").exists()
+    assert "Not produced in this run: the artefact was not given" in html  # the latency table
+    assert not any(p.is_relative_to(decoy.resolve()) for p in reads)
+
+
+def test_artefacts_from_named_inputs() -> None:
+    """A rule's named inputs become StudyArtefacts; only names behind the prefix are taken."""
+    named = {
+        "study_baseline_runs": "a/runs.parquet",
+        "study_best_gru": ["t/gru/best.json"],
+        "study_predictions_cnn": "p/cnn.parquet",
+        "meta": ["x.json", "y.json"],  # another input of the rule, left alone
+    }
+    got = StudyArtefacts.from_inputs(named, prefix="study_")
+    assert got.baseline_runs == Path("a/runs.parquet") and got.latency is None
+    assert got.best == {"gru": Path("t/gru/best.json")}
+    assert got.predictions == {"cnn": Path("p/cnn.parquet")} and got.trials == {}
+    with pytest.raises(ValueError, match="no study artefact"):
+        StudyArtefacts.from_inputs({"baseline_run": "typo.parquet"})
+    with pytest.raises(ValueError, match="one file"):
+        StudyArtefacts.from_inputs({"latency": ["a", "b"]})

@@ -35,6 +35,7 @@ from graspstab.learning.metrics import (  # noqa: E402
     select_threshold,
     threshold_grid,
 )
+from graspstab.learning.presentation import LEARNING_FIGURES  # noqa: E402
 from graspstab.report import dag  # noqa: E402
 from graspstab.report.funnel import funnel  # noqa: E402
 from graspstab.report.headline import (  # noqa: E402
@@ -45,6 +46,7 @@ from graspstab.report.headline import (  # noqa: E402
 from graspstab.report.provenance import stage_times  # noqa: E402
 from graspstab.report.write_report import SECTION_IDS, write_report  # noqa: E402
 from tests.conftest import REPO, SCHEMA  # noqa: E402
+from tests.study_layout import study_artefacts  # noqa: E402
 
 FAMILIES = ("cnn", "gru", "lstm")
 OBJECTS = {"014_lemon": "train", "013_apple": "val", "077_rubiks_cube": "test"}
@@ -97,7 +99,8 @@ def _runs_frame(rows: list[dict[str, Any]]) -> pl.DataFrame:
     return pl.DataFrame([{**base, **r} for r in rows])
 
 
-def _studies_tree(root: Path) -> Path:
+def _studies_tree(root: Path) -> Any:
+    """The headline's artefacts (baseline and sweep runs, proxy, splits summary) below ``root``."""
     s = root / "studies"
     rows = [
         {"family": "cnn", "seed": 42, "split": "test", "auprc": 0.80, "auroc": 0.7},
@@ -116,7 +119,7 @@ def _studies_tree(root: Path) -> Path:
     sweep = [{"family": "lstm", "seed": k, "split": "val", "auprc": v, "auroc": 0.5,
               "window_s": w} for k, (v, w) in enumerate([(0.6, 0.02), (0.7, 0.05)])]  # fmt: skip
     write_parquet(s / "sweep" / "runs.parquet", _runs_frame(sweep))
-    return s
+    return study_artefacts(root)
 
 
 def test_headline_values_and_undefined_reasons(tmp_path: Path) -> None:
@@ -141,7 +144,7 @@ def test_headline_values_and_undefined_reasons(tmp_path: Path) -> None:
 
 
 def test_headline_names_missing_artefacts(tmp_path: Path) -> None:
-    rows = headline_rows(tmp_path / "studies")
+    rows = headline_rows(study_artefacts(tmp_path))
     assert len(rows) == 8
     assert all(r[2].startswith("undefined (") and "not produced" in r[2] for r in rows)
     assert all(r[4] == "undefined" for r in rows)
@@ -177,7 +180,8 @@ def test_scale_sentence_warns_in_bold_for_quick_runs() -> None:
     ref = run_scale(load_config(REPO / "config", SCHEMA, {"profile": "thesis"},
                                 check_files=False), 3, [], dataset)["protocol"]  # fmt: skip
     assert ref["deviations"] == [] and "the reference's choices throughout" in scale_sentence(
-        {**scale, "protocol": ref})
+        {**scale, "protocol": ref}
+    )
 
 
 def test_headline_gap_column() -> None:
@@ -369,8 +373,14 @@ def _png(path: Path, seed: int) -> Path:
 def _record(family: str, seed: int, val_unstable: float, **extra: Any) -> dict[str, Any]:
     """A metrics.json record as train_model writes it, from synthetic scores."""
     rng = np.random.default_rng([seed, FAMILIES.index(family), int(100 * val_unstable)])
-    rec: dict[str, Any] = {"family": family, "seed": seed, "parameters": 1000,
-                           "seconds_per_epoch": 1.0, "best_epoch": 2, "window_steps": 400}
+    rec: dict[str, Any] = {
+        "family": family,
+        "seed": seed,
+        "parameters": 1000,
+        "seconds_per_epoch": 1.0,
+        "best_epoch": 2,
+        "window_steps": 400,
+    }
     data = {}
     for split, frac in (("val", val_unstable), ("test", 0.3)):
         labels = (rng.random(80) < frac).astype(np.int8)
@@ -395,9 +405,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         ["objects", "hand_candidates", "hand_capsules", "pregrasp", "grasp_gallery",
          "energy_histograms", "replay_trace", "window", "unstable_speeds"])}  # fmt: skip
     learning = {k: _png(r / "figures" / "learning" / f"{k}.png", 20 + i)
-                for i, k in enumerate(["benchmark", "confusion", "objects", "splits", "sweep",
-                                       "latency", "operating_points", "threshold_transfer",
-                                       "reliability", "proxy", "tuning"])}  # fmt: skip
+                for i, k in enumerate(LEARNING_FIGURES)}  # fmt: skip
     metas, summaries, replays, bench = [], [], [], {}
     q = {"q05": 0.001, "q50": 0.002, "q95": 0.004}
     for i, (obj, _) in enumerate(OBJECTS.items()):
@@ -448,8 +456,10 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
             write_json(paths[-1], _record(f, seed, 0.0))
     studies.aggregate_baseline(paths, s / "baseline")
     sweep = [_record("lstm", seed, 0.3, window_s=w) for seed in (42, 43) for w in (0.01, 0.02)]
-    write_parquet(s / "sweep" / "runs.parquet",
-                  aggregate.run_rows(sweep, [{"window_s": x["window_s"]} for x in sweep]))
+    write_parquet(
+        s / "sweep" / "runs.parquet",
+        aggregate.run_rows(sweep, [{"window_s": x["window_s"]} for x in sweep]),
+    )
     write_json(s / "splits" / "summary.json", {
         "assignments": 2, "defined": 2, "mean": 0.7, "std": 0.1, "median": 0.7, "min": 0.6,
         "fixed_split": 0.8, "hardest": [], "per_assignment": [],
@@ -467,7 +477,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         "grasp_summaries": summaries, "anneal_benchmarks": bench["anneal_grasps"],
         "replay_summaries": replays, "dataset_summary": r / "datasets" / "baseline" /
         "summary.json", "sweep_summaries": sorted(r.glob("datasets/sweep/*/summary.json")),
-        "learning_results": r, "learning_figures": learning, "rule_benchmarks": bench,
+        "learning": study_artefacts(r), "learning_figures": learning, "rule_benchmarks": bench,
         "rulegraph": graphs["rulegraph"], "jobgraph": graphs["dag"],
         "speeds_summary": r / "datasets" / "speeds.json",
     }  # fmt: skip
@@ -612,7 +622,9 @@ def test_benchmark_inputs_match_the_dag(snakemake_graphs: dict[str, Path]) -> No
     for combo in wildcards["anneal_grasps"]:
         per_object[combo["object"]] = per_object.get(combo["object"], 0) + 1
     assert {o: n for o, n in per_object.items() if splits[o] == "val"} == {
-        "013_apple": 4, "010_potted_meat_can": 4}
+        "013_apple": 4,
+        "010_potted_meat_can": 4,
+    }
     assert {n for o, n in per_object.items() if splits[o] != "val"} == {2}
 
 
@@ -630,7 +642,9 @@ def test_benchmark_inputs_expand_patterns() -> None:
         {"anneal_grasps": [{"object": "x", "shard": 0}, {"object": "y", "shard": 2}]},
     )
     assert explicit["benchmark_anneal_grasps"] == [
-        "b/anneal_grasps/x_shard_0.tsv", "b/anneal_grasps/y_shard_2.tsv"]
+        "b/anneal_grasps/x_shard_0.tsv",
+        "b/anneal_grasps/y_shard_2.tsv",
+    ]
     assert got == {
         "benchmark_anneal_grasps": shards,
         "benchmark_build_hand": ["b/build_hand/hand.tsv"],
@@ -638,4 +652,4 @@ def test_benchmark_inputs_expand_patterns() -> None:
     with pytest.raises(ValueError, match="new_rule"):
         benchmark_inputs([("new_rule", "b/{k}.tsv")], {})
     args = nested_config_args({"synthesis": {"shards": "3"}, "only_objects": ["a b"], "x": None})
-    assert args == "--config 'synthesis={\"shards\": \"3\"}' 'only_objects=[\"a b\"]' x="
+    assert args == '--config \'synthesis={"shards": "3"}\' \'only_objects=["a b"]\' x='

@@ -480,15 +480,15 @@ def test_e_pen_culled_equals_dense_on_real_hull(brick_hull: np.ndarray, dtype: t
 
 def _dense_depths(pp: PenetrationPoints, p0, p1, radii, center, rot, half) -> torch.Tensor:
     """Per-point ``max(-d_H, 0)`` (B, M) from the elementwise torch formulas of e_pen_dense."""
-    from graspstab.synthesis import energy
+    from graspstab.synthesis import penetration
 
     qx, qy, qz = pp.points.unbind(-1)
-    cols = energy._capsule_params(p0, p1, radii).permute(2, 0, 1)[..., None]
-    per_capsule = energy._capsule_distance(qx, qy, qz, *cols[:7].unbind(0))
+    cols = penetration._capsule_params(p0, p1, radii).permute(2, 0, 1)[..., None]
+    per_capsule = penetration._capsule_distance(qx, qy, qz, *cols[:7].unbind(0))
     per_capsule = (cols[7] - per_capsule).clamp_min(0.0).amax(1)
     ctr = center.T[..., None]
     rot_t = rot.permute(1, 2, 0)[..., None]
-    per_box = energy._box_penetration(qx, qy, qz, ctr[0], ctr[1], ctr[2], rot_t, half)
+    per_box = penetration._box_penetration(qx, qy, qz, ctr[0], ctr[1], ctr[2], rot_t, half)
     return torch.maximum(per_capsule, per_box)
 
 

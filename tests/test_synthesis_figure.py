@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 from graspstab.common.io import read_json
-from graspstab.synthesis import figure
+from graspstab.synthesis import figure, figure_data, figure_meshes
 
 INFLATION = 0.08  # [m], thesis 3.1.3
 STANDOFF = 0.08  # [m], inside the 0.06-0.10 m range of 3.1.3
@@ -54,7 +54,7 @@ def pregrasp(built_hand_dir: Path, brick_mesh: trimesh.Trimesh) -> dict[str, np.
     hand = read_json(built_hand_dir / "hand.json")
     palm_normal, focus = np.asarray(hand["palm_normal"]), np.asarray(hand["grasp_focus"])
     joints = np.clip(np.zeros(16), hand["joint_lower"], hand["joint_upper"])
-    out: dict[str, list[np.ndarray]] = {k: [] for k in figure.PREGRASP_KEYS}
+    out: dict[str, list[np.ndarray]] = {k: [] for k in figure_data.PREGRASP_KEYS}
     for outward, jitter in (([1.0, 0, 0], [0, 0.2, -0.1]), ([0, -1.0, 0], [0.1, 0, -0.2])):
         outward = np.asarray(outward)
         surface = brick_mesh.nearest.on_surface((0.2 * outward)[None])[0][0]
@@ -65,7 +65,7 @@ def pregrasp(built_hand_dir: Path, brick_mesh: trimesh.Trimesh) -> dict[str, np.
         rot = _rotation_to(palm_normal, direction)
         wrist = surface - STANDOFF * direction - rot @ focus
         values = [wrist, _quat(rot), joints, anchor, surface, direction, direction_raw]
-        for key, value in zip(figure.PREGRASP_KEYS, [*values, STANDOFF, 0.0], strict=True):
+        for key, value in zip(figure_data.PREGRASP_KEYS, [*values, STANDOFF, 0.0], strict=True):
             out[key].append(np.asarray(value, dtype=float))
     return {k: np.stack(v) for k, v in out.items()}
 
@@ -83,10 +83,10 @@ def grasps(pregrasp: dict[str, np.ndarray]) -> pl.DataFrame:
             wrist = pregrasp["wrist_pos"][i] + 0.04 * pregrasp["direction"][i]  # closer in
             joints = pregrasp["joints"][i] + rng.uniform(0.0, 0.4, 16)
             row = {"grasp_id": gid, "object": obj, "shard": 0, "seed": 7}
-            row |= dict(zip(figure.WRIST_COLUMNS, wrist, strict=True))
+            row |= dict(zip(figure_data.WRIST_COLUMNS, wrist, strict=True))
             row |= {f"rot6d_{j}": float(j == 0 or j == 4) for j in range(6)}
-            row |= dict(zip(figure.QUAT_COLUMNS, pregrasp["quat"][i], strict=True))
-            row |= dict(zip(figure.JOINT_COLUMNS, joints, strict=True))
+            row |= dict(zip(figure_data.QUAT_COLUMNS, pregrasp["quat"][i], strict=True))
+            row |= dict(zip(figure_data.JOINT_COLUMNS, joints, strict=True))
             row |= {f"e_{t}": energy / 5 for t in ("dis", "fc", "pen", "spen", "joint")}
             row |= {"energy": energy, "energy_start": 40.0 + 10 * k, "acceptance_rate": 0.3}
             rows.append(row)
@@ -159,7 +159,7 @@ def test_plot_pregrasp_rejects_incomplete_batches(
 
 
 def test_grasp_arrays_round_trip_the_columns(grasps: pl.DataFrame) -> None:
-    pos, quat, joints = figure.grasp_arrays(grasps)
+    pos, quat, joints = figure_data.grasp_arrays(grasps)
     assert pos.shape == (6, 3) and quat.shape == (6, 4) and joints.shape == (6, 16)
     assert pos.dtype == quat.dtype == joints.dtype == np.float64
     np.testing.assert_array_equal(pos[:, 2], grasps["wrist_z"].to_numpy())
@@ -167,36 +167,36 @@ def test_grasp_arrays_round_trip_the_columns(grasps: pl.DataFrame) -> None:
     np.testing.assert_array_equal(quat[:, 3], grasps["quat_z"].to_numpy())
     np.testing.assert_array_equal(joints[:, 0], grasps["theta_00"].to_numpy())
     np.testing.assert_array_equal(joints[:, 15], grasps["theta_15"].to_numpy())
-    one = figure.grasp_arrays(grasps.row(4, named=True))
+    one = figure_data.grasp_arrays(grasps.row(4, named=True))
     for a, b in zip(one, (pos, quat, joints), strict=True):
         np.testing.assert_array_equal(a, b[4:5])
 
 
 def test_grasp_arrays_names_missing_columns(grasps: pl.DataFrame) -> None:
     with pytest.raises(figure.FigureInputError, match="'theta_07'.*'quat_x'|'quat_x'.*'theta_07'"):
-        figure.grasp_arrays(grasps.drop("theta_07", "quat_x"))
+        figure_data.grasp_arrays(grasps.drop("theta_07", "quat_x"))
 
 
 def test_select_gallery_grasps_takes_the_lowest_energies(grasps: pl.DataFrame) -> None:
-    chosen = figure.select_gallery_grasps(grasps, per_object=2, max_objects=6)
+    chosen = figure_data.select_gallery_grasps(grasps, per_object=2, max_objects=6)
     assert chosen["object"].to_list() == ["brick_a", "brick_a", "brick_b", "brick_b"]
     assert chosen["energy"].to_list() == [1.5, 3.0, 0.0, 2.0]
-    first = figure.select_gallery_grasps(grasps, per_object=1, max_objects=1)
+    first = figure_data.select_gallery_grasps(grasps, per_object=1, max_objects=1)
     assert first["grasp_id"].to_list() == [1]
     # Non-finite energies never make it into the gallery.
     nan_best = grasps.with_columns(
         energy=pl.when(pl.col("grasp_id") == 3).then(float("nan")).otherwise(pl.col("energy"))
     )
-    assert 3 not in figure.select_gallery_grasps(nan_best, 3, 6)["grasp_id"].to_list()
+    assert 3 not in figure_data.select_gallery_grasps(nan_best, 3, 6)["grasp_id"].to_list()
     # A random pick is a seeded subset of the object's grasps.
-    a = figure.select_gallery_grasps(grasps, 2, 6, seed=3, choose="random")
-    b = figure.select_gallery_grasps(grasps, 2, 6, seed=3, choose="random")
+    a = figure_data.select_gallery_grasps(grasps, 2, 6, seed=3, choose="random")
+    b = figure_data.select_gallery_grasps(grasps, 2, 6, seed=3, choose="random")
     assert a.equals(b) and a.height == 4
     assert set(a["grasp_id"].to_list()) <= set(grasps["grasp_id"].to_list())
     with pytest.raises(figure.FigureInputError, match="energy"):
-        figure.select_gallery_grasps(grasps.drop("energy"), 2, 6)
+        figure_data.select_gallery_grasps(grasps.drop("energy"), 2, 6)
     with pytest.raises(ValueError, match="choose"):
-        figure.select_gallery_grasps(grasps, 2, 6, choose="worst")  # type: ignore[arg-type]
+        figure_data.select_gallery_grasps(grasps, 2, 6, choose="worst")  # type: ignore[arg-type]
 
 
 def test_plot_grasp_gallery(
@@ -228,15 +228,15 @@ def test_plot_energy_histograms(tmp_path: Path, grasps: pl.DataFrame) -> None:
     rgb = _assert_figure(out, min_side=200)  # one row of two panels
     r, b = rgb[..., 0], rgb[..., 2]
     assert np.sum((b - r > 0.2) & (b > 0.6)) > 500  # the blue final-energy bars
-    assert figure.energy_floor(np.array([0.0, 0.4, 2.0])) == pytest.approx(0.2)
-    assert figure.energy_floor(np.array([0.0, np.nan])) == pytest.approx(1e-6)
+    assert figure_data.energy_floor(np.array([0.0, 0.4, 2.0])) == pytest.approx(0.2)
+    assert figure_data.energy_floor(np.array([0.0, np.nan])) == pytest.approx(1e-6)
     with pytest.raises(figure.FigureInputError, match="'energy_start'"):
         figure.plot_energy_histograms(tmp_path / "h2.png", grasps.drop("energy_start"))
     assert not (tmp_path / "h2.png").exists()
 
 
 def test_decimate_keeps_winding_and_shrinks(brick_mesh: trimesh.Trimesh) -> None:
-    tris, normals = figure.mesh_surface(brick_mesh, 1500)
+    tris, normals = figure_meshes.mesh_surface(brick_mesh, 1500)
     assert len(tris) < len(brick_mesh.faces) and len(tris) > 300
 
     def outward(t: np.ndarray, n: np.ndarray) -> float:
@@ -248,5 +248,5 @@ def test_decimate_keeps_winding_and_shrinks(brick_mesh: trimesh.Trimesh) -> None
     # Shading normals follow the outward surface as well as the full mesh's own normals do.
     full = brick_mesh.vertices[brick_mesh.faces]
     assert outward(tris, normals) > outward(full, brick_mesh.face_normals) - 0.01 > 0.9
-    vertices, faces = figure.decimate(brick_mesh.vertices, brick_mesh.faces, 0.005)
+    vertices, faces = figure_meshes.decimate(brick_mesh.vertices, brick_mesh.faces, 0.005)
     assert faces.max() < len(vertices) and len(faces) < len(brick_mesh.faces)

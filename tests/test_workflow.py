@@ -86,7 +86,7 @@ def test_replay_traces_and_summary(run):
     import numpy as np
     import polars as pl
 
-    from graspstab.replay.replay_grasps import trace_key
+    from graspstab.replay.traces import trace_key
 
     workdir, _, _ = run
     replay = workdir / "results" / "replay" / OBJECT
@@ -174,7 +174,9 @@ ALTERNATIVES = ["contact=strict", "labels={settle: {require: both}}"]
 def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     """The whole DAG runs with the strict model, no squeeze and the `both` reading, and each shows
     in what it made: the replays' metadata, the settle rules and the report. Eq. 16's energy
-    runs through annealing, replay and labelling. Preprocessing comes from the toy run's cache."""
+    runs through annealing, replay and labelling: at toy scale, with the strict model and no
+    squeeze too, its deep grasps leave no training window. Preprocessing comes from the toy run's
+    cache."""
     import polars as pl
 
     from graspstab.common.io import read_parquet_metadata
@@ -213,18 +215,21 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
 
 
 @pytest.mark.workflow
-def test_bad_config_stops_at_load_time(tmp_path, ycb_dir, hand_assets_dir):
+@pytest.mark.parametrize(
+    ("override", "named"),
+    [
+        ("objects={items: {014_lemon: {split: training}}}", ["014_lemon", "'split'"]),
+        ("labels={v_slip: .nan}", ["labels.v_slip = nan"]),
+        ("labels={label_low: 0.7, label_high: 0.3}", ["labels.label_low", "label_high"]),
+    ],
+)
+def test_bad_config_stops_at_load_time(tmp_path, ycb_dir, hand_assets_dir, override, named):
+    # a real run, not a dry one: it must stop before any job, leaving no results/ behind
     env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    proc = _snakemake(
-        tmp_path,
-        "--dry-run",
-        "--config",
-        "objects={items: {014_lemon: {split: training}}}",
-        env=env,
-    )
+    proc = _snakemake(tmp_path, "results/report.html", "--config", override, env=env)
     assert proc.returncode != 0
     out = proc.stdout + proc.stderr
-    assert "014_lemon" in out and "'split'" in out
+    assert all(text in out for text in named), out[-2000:]
     assert not (tmp_path / "results").exists()
 
 

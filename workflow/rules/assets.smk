@@ -3,6 +3,10 @@
 
 
 rule fetch_ycb_object:
+    input:
+        # the user's own mesh (field 'mesh'), so editing it in place reruns the copy and all that
+        # follows; none for a YCB object (local copy or download), which stays as before
+        user_mesh=lambda wc: object_entry(wc).get("mesh") or [],
     output:
         mesh="resources/ycb/{object}/textured.obj",
         source="resources/ycb/{object}/source.json",

@@ -3,7 +3,7 @@
 import functools
 from pathlib import Path
 
-from graspstab.labels.trim import ms_of
+from graspstab.common.units import ms_of
 from graspstab.learning.splits import sample_assignments
 
 from graspstab.config import ConfigError, load_config, shards_of
@@ -109,9 +109,19 @@ MODELS = ["cnn", "gru", "lstm"]
 RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet"}
 
 
+def dataset_inputs(directory):
+    """Every file of a window dataset that training reads (graspstab.learning.data), as named
+    inputs: the index, the memory-mapped windows and the training-split statistics."""
+    return {
+        "index": f"{directory}/index.parquet",
+        "windows": f"{directory}/windows.npy",
+        "normalisation": f"{directory}/normalisation.json",
+    }
+
+
 def sweep_dataset(ms):
-    """The same-end dataset of one sweep window."""
-    return f"results/datasets/sweep/w{ms}ms/index.parquet"
+    """The same-end dataset of one sweep window, as :func:`dataset_inputs`."""
+    return dataset_inputs(f"results/datasets/sweep/w{ms}ms")
 
 
 def tuned_best(model):

@@ -71,9 +71,35 @@ rule trim_sweep_window:
         "../scripts/trim_sweep_window.py"
 
 
+# The replay trace figure (cf. fig. 3.7) of the first object's first shard, shaded by eq. 23's
+# timestep labels: a labelling-stage figure drawn on the replay stage's plot.
+rule plot_replay:
+    input:
+        summary=f"results/replay/{object_ids()[0]}/replays_0.parquet",
+        traces=f"results/replay/{object_ids()[0]}/traces_0.npz",
+    output:
+        "results/figures/replay_trace.png",
+    params:
+        timestep=config["replay"]["timestep"],
+        labels=config["labels"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    log:
+        "results/logs/plot_replay/replay.log",
+    benchmark:
+        "results/benchmarks/plot_replay/replay.tsv"
+    script:
+        "../scripts/plot_replay.py"
+
+
 rule plot_window:
     input:
         index=rules.label_windows.output.index,
+        tables=replay_outputs("replays"),
         traces=replay_outputs("traces"),
     output:
         "results/figures/window.png",

@@ -24,25 +24,3 @@ rule replay_grasps:
     script:
         "../scripts/replay_grasps.py"
 
-
-rule plot_replay:
-    input:
-        summary=f"results/replay/{object_ids()[0]}/replays_0.parquet",
-        traces=f"results/replay/{object_ids()[0]}/traces_0.npz",
-    output:
-        "results/figures/replay_trace.png",
-    params:
-        timestep=config["replay"]["timestep"],
-        labels=config["labels"],
-    conda:
-        CONDA_ENV
-    threads: 1
-    resources:
-        mem_mb=2000,
-        runtime=10,
-    log:
-        "results/logs/plot_replay/replay.log",
-    benchmark:
-        "results/benchmarks/plot_replay/replay.tsv"
-    script:
-        "../scripts/plot_replay.py"

@@ -91,7 +91,8 @@ rule report:
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,
         histograms=rules.plot_grasps.output.histograms,
-        studies=rules.studies.input,
+        # the studies' artefacts (graspstab.learning.artefacts), named study_<artefact>
+        **{f"study_{k}": v for k, v in STUDY_ARTEFACTS.items()},
         learning_figures=rules.plot_learning.output,
         rulegraph=rules.rulegraph.output.rules,
         jobgraph=rules.rulegraph.output.jobs,

@@ -1,6 +1,11 @@
 # Learning and evaluation (thesis 3.4-3.5, 4.3-4.7): the fixed-task benchmark, Optuna tuning, the
 # window-length sweep, split robustness, latency and the friction-ratio proxy. One training job is
 # one model x dataset x seed; aggregation jobs turn their metrics.json files into study tables.
+# Every study step has its own script (one library call each); rule plot_learning and the report
+# get the studies' artefacts as named inputs (STUDY_ARTEFACTS) and read only those.
+
+# The one list of learning figures (name -> file), shared with the figures and the report.
+from graspstab.learning.presentation import FIGURES as LEARNING_FIGURE_FILES
 
 
 wildcard_constraints:
@@ -12,8 +17,7 @@ wildcard_constraints:
 
 rule train_model:
     input:
-        index=rules.label_windows.output.index,
-        windows=rules.label_windows.output.windows,
+        **dataset_inputs("results/datasets/baseline"),
     output:
         **run_outputs("results/train/baseline/{model}/seed{seed}"),
     params:
@@ -35,7 +39,7 @@ rule train_model:
 
 rule tune_model:
     input:
-        index=sweep_dataset(ms_of(config["tune"]["window_s"])),
+        **sweep_dataset(ms_of(config["tune"]["window_s"])),
     output:
         best="results/tune/{model}/best.json",
         trials="results/tune/{model}/trials.parquet",
@@ -60,8 +64,7 @@ rule tune_model:
 
 rule train_sweep_model:
     input:
-        unpack(lambda wc: tuned_best(wc.model)),
-        index=lambda wc: sweep_dataset(wc.ms),
+        unpack(lambda wc: {**tuned_best(wc.model), **sweep_dataset(wc.ms)}),
     output:
         **run_outputs("results/train/sweep/{model}/w{ms}ms/seed{seed}"),
     params:
@@ -86,7 +89,7 @@ rule train_sweep_model:
 rule train_split_model:
     input:
         unpack(lambda wc: tuned_best(wc.model)),
-        index=sweep_dataset(ms_of(config["splits"]["window_s"])),
+        **sweep_dataset(ms_of(config["splits"]["window_s"])),
     output:
         **run_outputs("results/train/splits/{model}/a{k}/seed{seed}", checkpoint=False),
     params:
@@ -119,7 +122,6 @@ rule aggregate_baseline:
         errors="results/studies/baseline/errors.parquet",
         overview="results/studies/baseline/summary.json",
     params:
-        step="baseline",
         out_dir=lambda wc, output: str(Path(output[0]).parent),
     conda:
         CONDA_ENV
@@ -132,7 +134,7 @@ rule aggregate_baseline:
     benchmark:
         "results/benchmarks/aggregate_baseline/baseline.tsv"
     script:
-        "../scripts/studies.py"
+        "../scripts/aggregate_baseline.py"
 
 
 # Latency of the first seed's checkpoint of every baseline model and sweep configuration.
@@ -148,7 +150,6 @@ rule measure_latency:
     output:
         "results/studies/latency.parquet",
     params:
-        step="latency",
         run_keys=LATENCY_KEYS,
         latency=config["latency"],
     conda:
@@ -162,7 +163,7 @@ rule measure_latency:
     benchmark:
         "results/benchmarks/measure_latency/latency.tsv"
     script:
-        "../scripts/studies.py"
+        "../scripts/measure_latency.py"
 
 
 rule aggregate_sweep:
@@ -175,7 +176,6 @@ rule aggregate_sweep:
         points="results/studies/sweep/operating_points.parquet",
         overview="results/studies/sweep/summary.json",
     params:
-        step="sweep",
         out_dir=lambda wc, output: str(Path(output[0]).parent),
     conda:
         CONDA_ENV
@@ -188,7 +188,7 @@ rule aggregate_sweep:
     benchmark:
         "results/benchmarks/aggregate_sweep/sweep.tsv"
     script:
-        "../scripts/studies.py"
+        "../scripts/aggregate_sweep.py"
 
 
 rule aggregate_splits:
@@ -198,7 +198,6 @@ rule aggregate_splits:
         runs="results/studies/splits/runs.parquet",
         overview="results/studies/splits/summary.json",
     params:
-        step="splits",
         out_dir=lambda wc, output: str(Path(output[0]).parent),
         assignments=lambda wc: assignments(),
     conda:
@@ -212,18 +211,16 @@ rule aggregate_splits:
     benchmark:
         "results/benchmarks/aggregate_splits/splits.tsv"
     script:
-        "../scripts/studies.py"
+        "../scripts/aggregate_splits.py"
 
 
 rule evaluate_proxy:
     input:
         index=rules.label_windows.output.index,
         windows=rules.label_windows.output.windows,
+        normalisation=rules.label_windows.output.normalisation,
     output:
         "results/studies/proxy.json",
-    params:
-        step="proxy",
-        dataset=lambda wc, input: str(Path(input.index).parent),
     conda:
         CONDA_ENV
     threads: 1
@@ -235,7 +232,7 @@ rule evaluate_proxy:
     benchmark:
         "results/benchmarks/evaluate_proxy/proxy.tsv"
     script:
-        "../scripts/studies.py"
+        "../scripts/evaluate_proxy.py"
 
 
 rule studies:
@@ -247,28 +244,35 @@ rule studies:
         expand("results/tune/{model}/best.json", model=MODELS),
 
 
-LEARNING_FIGURES = [
-    "benchmark",
-    "confusion",
-    "objects",
-    "splits",
-    "sweep",
-    "latency",
-    "operating_points",
-    "threshold_transfer",
-    "reliability",
-    "proxy",
-    "tuning",
-]
+# The studies' artefacts as named inputs (graspstab.learning.artefacts.StudyArtefacts): the
+# aggregate tables and summaries, latency, proxy and the tuned best configurations (best_<model>).
+STUDY_ARTEFACTS = {
+    **{f"baseline_{k}": v for k, v in rules.aggregate_baseline.output.items()},
+    **{f"sweep_{k}": v for k, v in rules.aggregate_sweep.output.items()},
+    **{f"splits_{k}": v for k, v in rules.aggregate_splits.output.items()},
+    "latency": rules.measure_latency.output[0],
+    "proxy": rules.evaluate_proxy.output[0],
+    **{f"best_{m}": expand(rules.tune_model.output.best, model=m)[0] for m in MODELS},
+}
+# Per model, the first seed's baseline predictions and metrics.json (figs. 4.8, 4.9) and the
+# tuning trials (the optimisation histories), as named inputs <kind>_<model>.
+FIRST_SEED_ARTEFACTS = {
+    f"{kind}_{m}": expand(path, model=m, seed=config["train"]["seeds"][0])[0]
+    for m in MODELS
+    for kind, path in (
+        ("predictions", rules.train_model.output.predictions),
+        ("metrics", rules.train_model.output.metrics),
+        ("trials", rules.tune_model.output.trials),
+    )
+}
 
 
 rule plot_learning:
     input:
-        rules.studies.input,
-        baseline_runs("predictions.parquet", config["train"]["seeds"][:1]),
-        expand("results/tune/{model}/trials.parquet", model=MODELS),
+        **STUDY_ARTEFACTS,
+        **FIRST_SEED_ARTEFACTS,
     output:
-        [f"results/figures/learning/{name}.png" for name in LEARNING_FIGURES],
+        **{n: f"results/figures/learning/{f}" for n, f in LEARNING_FIGURE_FILES.items()},
     params:
         dpi=config["report"]["figure_dpi"],
         first_seed=config["train"]["seeds"][0],

@@ -7,7 +7,8 @@ from graspstab.labels.build_datasets import build_dataset
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 p = dict(sm.params.dataset)
 build_dataset(
-    list(sm.input.tables),
+    # the declared inputs, pairwise: replay_outputs() lists tables and traces in the same order
+    list(zip(sm.input.tables, sm.input.traces, strict=True)),
     Path(sm.output.index).parent,
     dict(p["labels"]),
     dict(p["splits"]),

@@ -1,14 +1,14 @@
-"""Snakemake wrapper: the replay trace figure of one example grasp (graspstab.replay.figure)."""
+"""Snakemake wrapper: the replay trace figure shaded by the labels (graspstab.labels.figure)."""
 
 from graspstab.common.logs import setup_logging
-from graspstab.replay.figure import plot_replay_example
+from graspstab.labels.figure import plot_labelled_replay
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 setup_logging(sm.log[0])
-plot_replay_example(
+plot_labelled_replay(
     sm.input.summary,
     sm.input.traces,
     float(sm.params.timestep),
+    dict(sm.params.labels),
     sm.output[0],
-    labels=dict(sm.params.labels),
 )

@@ -1,7 +1,5 @@
 """Snakemake wrapper: the window illustration of the baseline dataset (graspstab.labels.figure)."""
 
-from pathlib import Path
-
 from graspstab.common.logs import setup_logging
 from graspstab.labels.figure import plot_window
 
@@ -9,7 +7,8 @@ sm = snakemake  # noqa: F821  (injected by Snakemake)
 setup_logging(sm.log[0])
 plot_window(
     sm.input.index,
-    Path(sm.input.traces[0]).parent.parent,
+    list(sm.input.tables),
+    list(sm.input.traces),
     dict(sm.params.labels),
     float(sm.params.dt),
     sm.output[0],

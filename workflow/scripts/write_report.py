@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from graspstab.common.logs import setup_logging
+from graspstab.learning.artefacts import StudyArtefacts
 from graspstab.report.write_report import write_report
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -35,7 +36,7 @@ write_report(
     replay_summaries=[Path(p) for p in sm.input.replay_summaries],
     dataset_summary=Path(sm.input.dataset_summary),
     sweep_summaries=[Path(p) for p in sm.input.sweep_summaries],
-    learning_results=Path("results"),
+    learning=StudyArtefacts.from_inputs(dict(sm.input.items()), prefix="study_"),
     learning_figures={Path(p).stem: Path(p) for p in sm.input.learning_figures},
     rule_benchmarks=benchmarks,
     rulegraph=Path(sm.input.rulegraph),

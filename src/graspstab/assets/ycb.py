@@ -52,8 +52,21 @@ def _stage_override(object_id: str, mesh: Path, staged: Path) -> dict[str, Any]:
             f"object '{object_id}', field 'mesh': no such file {mesh}; "
             "fix the path in the object set"
         )
+    check_user_mesh(object_id, mesh)
     shutil.copyfile(mesh, staged)
     return {"method": "mesh_override", "source": str(mesh.resolve())}
+
+
+def check_user_mesh(object_id: str, mesh: str | os.PathLike[str]) -> None:
+    """Refuse the user's own mesh (field ``mesh``) here, at the first job, unless it is a readable
+    OBJ of a hand-held size: :class:`AssetError` naming the object and the file."""
+    # imported here: trimesh is not needed to load the workflow (the catalogue imports this package)
+    from graspstab.assets.mesh_file import MeshFileError, load_object_mesh
+
+    try:
+        load_object_mesh(mesh, object_id, user_file=mesh)
+    except MeshFileError as exc:
+        raise AssetError(str(exc)) from exc
 
 
 def _stage_download(
@@ -117,14 +130,15 @@ def fetch_ycb_object(
 ) -> dict[str, Any]:
     """Write ``<dest_dir>/textured.obj`` and ``source.json``; return the source record.
 
-    The mesh comes from ``mesh_override`` (the user's own file) if given, else from
-    ``<local_dir>/<id>/textured.obj`` (copied), else from the official google_16k archive. It is
-    verified against ``sha256`` when one is given. On failure nothing new is left in ``dest_dir``:
+    The mesh comes from ``mesh_override`` (the user's own file, which must be a readable OBJ of a
+    hand-held size: :func:`check_user_mesh`) if given, else from ``<local_dir>/<id>/textured.obj``
+    (copied), else from the official google_16k archive. It is verified against ``sha256`` when
+    one is given. On failure nothing new is left in ``dest_dir`` (nor the folders made for it):
     staging happens in a temp folder inside it, removed in every case.
     """
     expected = normalise_sha256(sha256, f"YCB object '{object_id}'")
     dest = Path(dest_dir)
-    created = not dest.exists()
+    created = [d for d in (dest, *dest.parents) if not d.exists()]  # innermost first
     dest.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=".fetch-", dir=dest))
     mesh_placed = False
@@ -165,9 +179,9 @@ def fetch_ycb_object(
         shutil.rmtree(work, ignore_errors=True)
         if mesh_placed:
             (dest / MESH_NAME).unlink(missing_ok=True)
-        if created:
+        for folder in created:  # the folders this call made, if still empty
             with contextlib.suppress(OSError):
-                dest.rmdir()
+                folder.rmdir()
         raise
     shutil.rmtree(work, ignore_errors=True)
     log.info("YCB object '%s': %s via %s (%s)", object_id, MESH_NAME, record["method"], actual)

@@ -1,4 +1,4 @@
-"""Content-addressed results (DESIGN.md, caching contract point 3).
+"""Content-addressed results (docs/design.md, caching contract point 3).
 
 An expensive job's outputs are stored under the hash of what determines them: the rule, its params
 and wildcards, the *content* of its inputs, the code version of the library stages it runs and the
@@ -18,7 +18,6 @@ import hashlib
 import json
 import logging
 import os
-import re
 import shutil
 import tempfile
 import time
@@ -26,7 +25,12 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from graspstab.common.provenance import _PKG_ROOT, code_version, installed_versions, stable_hash
+from graspstab.common.provenance import (
+    files_version,
+    installed_versions,
+    module_closure,
+    stable_hash,
+)
 
 log = logging.getLogger(__name__)
 
@@ -48,25 +52,6 @@ def content_digest(path: str | os.PathLike[str]) -> str:
         return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
-def stage_closure(stages: Iterable[str]) -> list[str]:
-    """The named sub-packages plus every graspstab sub-package they import, transitively, so a
-    change in shared code (e.g. ``labels`` used by ``replay``) reaches every key that depends on
-    it."""
-    pattern = re.compile(r"^\s*(?:from|import) graspstab\.(\w+)", re.M)
-    seen: set[str] = set()
-    todo = list(stages)
-    while todo:
-        name = todo.pop()
-        if name in seen:
-            continue
-        seen.add(name)
-        root = _PKG_ROOT / name
-        files = sorted(root.rglob("*.py")) if root.is_dir() else [root.with_suffix(".py")]
-        for f in files:
-            todo.extend(pattern.findall(f.read_text()))
-    return sorted(seen)
-
-
 def job_key(
     rule: str,
     stages: Iterable[str],
@@ -78,7 +63,7 @@ def job_key(
     content in order, so another workflow directory with the same inputs finds the same key."""
     material = {
         "rule": rule,
-        "code_version": code_version(*stage_closure(stages)),
+        "code_version": files_version(module_closure(stages)),
         "params": params,
         "wildcards": dict(wildcards),
         "inputs": [content_digest(p) for p in inputs],

@@ -70,15 +70,67 @@ def write_json(path: str | os.PathLike[str], data: Any) -> None:
         tmp.write_text(text + "\n")
 
 
+class UnreadableArtefact(RuntimeError):
+    """An artefact on disk that cannot be parsed (truncated by a kill, a full disk, a bad copy)."""
+
+
+def unreadable(path: str | os.PathLike[str], error: BaseException) -> UnreadableArtefact:
+    """The one message for a corrupt artefact: which file, and how to recover."""
+    return UnreadableArtefact(
+        f"{path} is unreadable (truncated?): {type(error).__name__}: {error}. "
+        "Delete it and rerun; the workflow rebuilds it."
+    )
+
+
+@contextlib.contextmanager
+def reading(path: str | os.PathLike[str]) -> Iterator[None]:
+    """Turn any parse error raised while reading ``path`` into :class:`UnreadableArtefact`
+    (a missing file stays a FileNotFoundError: that is a different fix)."""
+    try:
+        yield
+    except (FileNotFoundError, UnreadableArtefact):
+        raise
+    except Exception as error:  # noqa: BLE001 - every reader's parse errors, one message
+        raise unreadable(path, error) from error
+
+
 def read_json(path: str | os.PathLike[str]) -> Any:
     """Read a JSON file."""
-    return json.loads(Path(path).read_text())
+    with reading(path):
+        return json.loads(Path(path).read_text())
+
+
+def read_parquet(path: str | os.PathLike[str], **kwargs: Any) -> Any:
+    """Read a Parquet table as a polars DataFrame; a corrupt file names its path."""
+    import polars as pl
+
+    with reading(path):
+        return pl.read_parquet(path, **kwargs)
+
+
+def load_npz(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Every array of a ``.npz`` file, loaded eagerly so a truncated member fails here, named."""
+    with reading(path), np.load(path, allow_pickle=False) as data:
+        return {key: data[key] for key in data.files}
+
+
+def load_npy(path: str | os.PathLike[str], mmap_mode: str | None = None) -> np.ndarray:
+    """One ``.npy`` array (memory-mapped if asked); a corrupt file names its path."""
+    with reading(path):
+        return np.load(path, mmap_mode=mmap_mode, allow_pickle=False)
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> None:
     """Write text atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(text)
+
+
+def save_figure(path: str | os.PathLike[str], fig: Any, **kwargs: Any) -> None:
+    """Save a matplotlib figure atomically (the format comes from ``path``'s suffix)."""
+    fmt = kwargs.pop("format", Path(path).suffix.lstrip(".") or "png")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=fmt, **kwargs)
 
 
 def save_npz(path: str | os.PathLike[str], **arrays: Any) -> None:
@@ -112,5 +164,7 @@ def read_parquet_metadata(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The ``graspstab`` JSON metadata written by :func:`write_parquet` (empty if none)."""
     import pyarrow.parquet as pq
 
-    raw = (pq.read_schema(path).metadata or {}).get(b"graspstab")
+    with reading(path):
+        schema = pq.read_schema(path)
+    raw = (schema.metadata or {}).get(b"graspstab")
     return json.loads(raw) if raw else {}

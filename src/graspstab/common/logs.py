@@ -1,4 +1,4 @@
-"""Logging set-up shared by the stage entry points (one log file per job, DESIGN.md)."""
+"""Logging set-up shared by the stage entry points (one log file per job, docs/design.md)."""
 
 from __future__ import annotations
 

@@ -72,6 +72,15 @@ def compose_config(
     try:
         with initialize_config_dir(config_dir=str(config_dir), version_base="1.3"):
             cfg = compose(config_name="config", overrides=overrides)
+    except yaml.YAMLError as exc:
+        hint = (
+            " An id (or key) appears twice in that file: each object id must appear once in "
+            "its object set; remove or rename one entry."
+            if "duplicate key" in str(exc)
+            else " Fix the YAML syntax at the line shown."
+        )
+        where = f"could not read a file of the config tree {config_dir}"
+        raise ConfigError(f"{where}: {exc}.{hint}") from exc
     except (HydraException, OmegaConfBaseException) as exc:
         raise ConfigError(
             f"could not compose the configuration in {config_dir} with overrides {overrides}: {exc}"

@@ -10,6 +10,7 @@ import yaml
 
 from graspstab.assets.catalogue import is_known_ycb_id
 from graspstab.config.errors import ConfigError
+from graspstab.config.relations import check_finite, check_relations
 
 SPLITS = ("train", "val", "test")
 
@@ -72,6 +73,12 @@ def validate_objects(cfg: dict[str, Any], check_files: bool = True) -> None:
         if mesh is not None:
             if not Path(mesh).is_file():
                 raise ConfigError(f"{where}, field 'mesh': no such file {mesh}")
+            if Path(mesh).suffix.lower() != ".obj":
+                raise ConfigError(
+                    f"{where}, field 'mesh': {mesh} is not a Wavefront OBJ file (suffix "
+                    f"'{Path(mesh).suffix}'); graspstab reads OBJ meshes in metres only: convert "
+                    "it (e.g. trimesh.load(path).export('mesh.obj')) and give the .obj file"
+                )
         elif ycb_dir is not None:
             path = Path(ycb_dir) / object_id / "textured.obj"
             if not path.is_file():
@@ -81,6 +88,11 @@ def validate_objects(cfg: dict[str, Any], check_files: bool = True) -> None:
                     "<id>/textured.obj, or unset it to download the official archive"
                 )
     only = cfg.get("only_objects")
+    if only is not None and not isinstance(only, list):
+        raise ConfigError(
+            f"only_objects = {only!r} must be a list of object ids, e.g. "
+            f"--config 'only_objects=[{only}]' (a bare string would be read letter by letter)"
+        )
     if only is not None:
         unknown = [o for o in only if o not in items]
         if unknown:
@@ -91,6 +103,10 @@ def validate_objects(cfg: dict[str, Any], check_files: bool = True) -> None:
 
 
 def validate_config(cfg: dict[str, Any], schema_path: str | Path, check_files: bool = True) -> None:
-    """Full load-time validation of the resolved configuration."""
-    validate_objects(cfg, check_files=check_files)  # first: its messages name entry and field
+    """Full load-time validation of the resolved configuration: the object set (its messages name
+    the entry and field), then finite numbers and types (the schema), then relations between
+    fields, which assume the types."""
+    validate_objects(cfg, check_files=check_files)
+    check_finite(cfg)
     validate_schema(cfg, schema_path)
+    check_relations(cfg)

@@ -11,6 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from graspstab.common.io import load_npz
 from graspstab.hand import names
 from graspstab.hand.model import HAND_XML
 
@@ -29,8 +30,7 @@ class HandKinematics:
         self.joint_qpos = np.array(
             [int(self.model.joint(j).qposadr[0]) for j in names.FINGER_JOINTS], dtype=int
         )
-        with np.load(self.hand_dir / CANDIDATES_FILE) as npz:
-            self.candidates = {k: npz[k] for k in npz.files}
+        self.candidates = load_npz(self.hand_dir / CANDIDATES_FILE)
         self.candidate_body_ids = np.array(
             [self.model.body(str(b)).id for b in self.candidates["body"]], dtype=int
         )

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import save_npy, write_json, write_parquet
+from graspstab.common.io import read_parquet, save_npy, write_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.labels.label_windows import label_windows, load_windows, normalisation
 from graspstab.labels.trim import trim_same_end
@@ -42,12 +42,14 @@ def dataset_summary(index: pl.DataFrame) -> dict[str, Any]:
 
 
 def build_dataset(
-    replay_tables: list[str], out_dir: str | Path, labels: dict[str, Any], splits: dict[str, str],
-    window_s: float, dt: float, seed: int, log_file: str | Path | None = None,
+    replays: list[tuple[str, str]], out_dir: str | Path, labels: dict[str, Any],
+    splits: dict[str, str], window_s: float, dt: float, seed: int,
+    log_file: str | Path | None = None,
 ) -> dict[str, Any]:  # fmt: skip
-    """Build one dataset from the replays and write its ``summary.json`` beside it."""
+    """Build one dataset from the replays ((table, traces) pairs) and write its ``summary.json``
+    beside it."""
     setup_logging(log_file)
-    index = label_windows(replay_tables, out_dir, labels, splits, window_s, dt, seed)
+    index = label_windows(replays, out_dir, labels, splits, window_s, dt, seed)
     summary = {"window_s": window_s, **dataset_summary(index)}
     write_json(Path(out_dir) / "summary.json", summary)
     return summary
@@ -61,7 +63,7 @@ def trim_dataset(
     setup_logging(log_file)
     ref, out = Path(reference_dir), Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    index = pl.read_parquet(ref / "index.parquet")
+    index = read_parquet(ref / "index.parquet")
     steps = step_counts(window_s, 0.0, 0.0, dt)[0]
     trimmed, windows = trim_same_end(index, load_windows(ref), steps)
     save_npy(out / "windows.npy", np.ascontiguousarray(windows, dtype=np.float32))

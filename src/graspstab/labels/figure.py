@@ -1,5 +1,6 @@
-"""The window illustration (cf. thesis fig. 3.8): observation window, offset and horizon of one
-sample drawn on its replay's fingertip forces, with the stable/unstable shading of eq. 23."""
+"""The labelling stage's figures: the replay trace shaded by eq. 23's timestep labels (cf. thesis
+fig. 3.7) and the window illustration (fig. 3.8: observation window, offset and horizon of one
+sample drawn on its replay's fingertip forces)."""
 
 from __future__ import annotations
 
@@ -13,10 +14,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import polars as pl  # noqa: E402
 
+from graspstab.common.io import read_parquet, save_figure  # noqa: E402
 from graspstab.hand.names import FINGERS  # noqa: E402
 from graspstab.labels.interval import usable_interval  # noqa: E402
 from graspstab.labels.windows import step_counts, timestep_labels  # noqa: E402
-from graspstab.replay.replay_grasps import trace_key  # noqa: E402
+from graspstab.replay.figure import example_traces, plot_replay_trace  # noqa: E402
+from graspstab.replay.traces import read_traces  # noqa: E402
 
 
 def shade_periods(axes: list[Any], t: np.ndarray, u: np.ndarray, start: int, end: int) -> None:
@@ -31,6 +34,38 @@ def shade_periods(axes: list[Any], t: np.ndarray, u: np.ndarray, start: int, end
             ax.axvspan(t[start + a], t[start + b - 1], color=colour, alpha=0.15, lw=0)
 
 
+def plot_labelled_replay(
+    summary_path: str | Path, traces_path: str | Path, dt: float, labels: dict[str, Any],
+    out_path: str | Path,
+) -> int:  # fmt: skip
+    """The replay trace figure of one shard's example grasp (graspstab.replay.figure), its
+    usable interval shaded red where u_t = 1 and green where u_t = 0; returns its grasp id."""
+    obj, gid, traces = example_traces(summary_path, traces_path)
+    speed = np.linalg.norm(traces["velocity"].astype(np.float64), axis=1)
+    ui = usable_interval(speed, traces["min_distance"].astype(np.float64), dt,
+                         labels["settle"], labels["contact_loss_s"])  # fmt: skip
+    u = timestep_labels(speed, labels["v_slip"])
+
+    def shade(axes: list[Any], t: np.ndarray) -> None:
+        shade_periods(axes, t, u, ui.settle_index, min(ui.contact_end, len(t)))
+
+    plot_replay_trace(traces, dt, out_path, f"{obj}, grasp {gid} (cf. thesis fig. 3.7)", shade)
+    return gid
+
+
+def trace_files_by_shard(
+    tables: list[str | Path], traces: list[str | Path]
+) -> dict[tuple[str, int], Path]:
+    """(object, shard) -> trace file, from the declared replay tables and their trace files
+    (pairwise, in the same order), read from the tables' own rows rather than their paths."""
+    out: dict[tuple[str, int], Path] = {}
+    for table, trace in zip(tables, traces, strict=True):
+        rows = read_parquet(table, columns=["object", "shard"]).unique()
+        for obj, shard in rows.iter_rows():
+            out[(obj, int(shard))] = Path(trace)
+    return out
+
+
 def pick_window(index: pl.DataFrame) -> dict[str, Any]:
     """A sample worth showing: a mixed future (0 < r < 1) if any, else an unstable one, else the
     first."""
@@ -42,26 +77,28 @@ def pick_window(index: pl.DataFrame) -> dict[str, Any]:
 
 
 def plot_window(
-    index_path: str | Path, replay_dir: str | Path, labels: dict[str, Any], dt: float,
-    out_path: str | Path,
+    index_path: str | Path, tables: list[str | Path], traces: list[str | Path],
+    labels: dict[str, Any], dt: float, out_path: str | Path,
 ) -> None:  # fmt: skip
-    """Draw :func:`pick_window`'s sample of a dataset on its replay (full span and a zoom); an
-    empty dataset gives a figure that says so."""
-    index = pl.read_parquet(index_path)
+    """Draw :func:`pick_window`'s sample of a dataset on its replay (full span and a zoom), read
+    from the declared replay ``tables`` and ``traces``; an empty dataset gives a figure that says
+    so."""
+    index = read_parquet(index_path)
     if index.height == 0:
         fig, ax = plt.subplots(figsize=(6, 1.5))
         ax.text(0.5, 0.5, "no labelled window in this run", ha="center", va="center")
         ax.set_axis_off()
-        Path(out_path).parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(out_path, dpi=110)
+        save_figure(out_path, fig, dpi=110)
         plt.close(fig)
         return
     sample = pick_window(index)
     w = sample["end"] - sample["start"]
     _, o, h = step_counts(labels["window_s"], labels["offset_s"], labels["horizon_s"], dt)
     gid, obj, shard = sample["grasp_id"], sample["object"], sample["shard"]
-    with np.load(Path(replay_dir) / obj / f"traces_{shard}.npz") as npz:
-        tr = {c: npz[trace_key(gid, c)] for c in ("velocity", "min_distance", "normal", "shear")}
+    files = trace_files_by_shard(tables, traces)
+    if (obj, int(shard)) not in files:
+        raise KeyError(f"{index_path}: window of {obj} shard {shard} has no declared trace file")
+    tr = read_traces(files[(obj, int(shard))], gid, ("velocity", "min_distance", "normal", "shear"))
     speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
     ui = usable_interval(speed, tr["min_distance"].astype(np.float64), dt, labels["settle"],
                          labels["contact_loss_s"])  # fmt: skip
@@ -89,6 +126,5 @@ def plot_window(
         fontsize=9,
     )
     fig.tight_layout()
-    Path(out_path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_path, dpi=110)
+    save_figure(out_path, fig, dpi=110)
     plt.close(fig)

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import save_npy, write_json, write_parquet
+from graspstab.common.io import load_npy, read_parquet, save_npy, write_json, write_parquet
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
-from graspstab.replay.replay_grasps import trace_key
+from graspstab.replay.traces import TraceFile
 
 CHANNELS = ("normal", "shear")
 
@@ -59,7 +59,7 @@ def grasp_windows(
 
 
 def label_windows(
-    replay_tables: list[str | Path],
+    replays: list[tuple[str | Path, str | Path]],
     out_dir: str | Path,
     labels: dict[str, Any],
     splits: dict[str, str],
@@ -68,21 +68,21 @@ def label_windows(
     seed: int,
     eps: float = 1e-6,
 ) -> pl.DataFrame:
-    """Build the dataset of ``window_s`` from the replay tables (traces beside them)."""
+    """Build the dataset of ``window_s`` from the replays: (summary table, trace file) pairs,
+    as the rule declares them."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     w = step_counts(window_s, labels["offset_s"], labels["horizon_s"], dt)[0]
     rows: list[dict[str, Any]] = []
     chunks: list[np.ndarray] = []
-    for table_path in map(Path, replay_tables):
-        table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
-        traces_path = table_path.with_name(table_path.name.replace("replays_", "traces_"))
-        with np.load(traces_path.with_suffix(".npz")) as npz:
+    for table_path, traces_path in replays:
+        table = read_parquet(table_path).filter(~pl.col("diverged"))
+        with TraceFile(traces_path) as npz:
             for g in table.iter_rows(named=True):
                 obj, gid = g["object"], int(g["grasp_id"])
                 if obj not in splits:
                     raise KeyError(f"{table_path}: object {obj!r} has no split in the object set")
-                tr = {c: npz[trace_key(gid, c)] for c in ("velocity", "min_distance", *CHANNELS)}
+                tr = npz.grasp(gid, ("velocity", "min_distance", *CHANNELS))
                 starts, r, y, _ = grasp_windows(tr, obj, gid, labels, window_s, dt, seed)
                 if not len(starts):
                     continue
@@ -121,4 +121,4 @@ def normalisation(windows: np.ndarray, index: pl.DataFrame, eps: float = 1e-6) -
 
 def load_windows(out_dir: str | Path) -> np.ndarray:
     """The dataset's windows as a read-only memory map (N, W, 5, 2)."""
-    return np.load(os.fspath(Path(out_dir) / "windows.npy"), mmap_mode="r")
+    return load_npy(os.fspath(Path(out_dir) / "windows.npy"), mmap_mode="r")

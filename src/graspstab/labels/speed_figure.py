@@ -12,9 +12,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
 
-from graspstab.common.io import atomic_path, write_json  # noqa: E402
+from graspstab.common.io import read_parquet, save_figure, write_json  # noqa: E402
 from graspstab.labels.speeds import summarise_speeds  # noqa: E402
 
 FLOOR = 1e-6  # [m/s] speeds below 1 um/s are drawn in the first bin (log axis)
@@ -44,8 +43,7 @@ def plot_speeds(summary: dict[str, Any], speeds: dict[str, np.ndarray], out: str
     ax.set_title(f"What the labels mean under the '{summary['contact_model']}' contact model")
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
+    save_figure(out, fig, dpi=110)
     plt.close(fig)
 
 
@@ -60,7 +58,7 @@ def plot_unstable_speeds(
     out_png: str | Path,
 ) -> dict[str, Any]:
     """Entry point of rule plot_unstable_speeds: the summary JSON and the histogram."""
-    index = pl.read_parquet(index_path)
+    index = read_parquet(index_path)
     summary, speeds = summarise_speeds(
         index, [Path(p) for p in replay_tables], [Path(p) for p in trace_files], contact,
         labels, float(labels["window_s"]), dt,

@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from graspstab.common.io import read_parquet
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.windows import step_counts
 from graspstab.replay.creep import HELD_SQUEEZE, box_creep, held_creep
-from graspstab.replay.replay_grasps import trace_key
+from graspstab.replay.traces import TraceFile
 
 
 def target_speeds(
@@ -57,20 +58,21 @@ def summarise_speeds(
     held: list[float] = []
     by_grasp = {k: g for k, g in index.group_by(["object", "shard", "grasp_id"])}
     for table_path, trace_path in zip(replay_tables, trace_files, strict=True):
-        table = pl.read_parquet(table_path)
-        with np.load(trace_path) as npz:
+        table = read_parquet(table_path)
+        with TraceFile(trace_path) as npz:
             for g in table.iter_rows(named=True):
                 key = (g["object"], int(g["shard"]), int(g["grasp_id"]))
                 if key not in by_grasp and not g["held_at_end"]:
                     continue
-                vel = npz[trace_key(g["grasp_id"], "velocity")].astype(np.float64)
+                vel = npz.grasp(g["grasp_id"], ("velocity",))["velocity"].astype(np.float64)
                 if g["held_at_end"]:
                     held.append(held_creep(vel, dt))
                 if key not in by_grasp:
                     continue
                 rows = by_grasp[key]
                 speed = np.linalg.norm(vel, axis=1)
-                dist = npz[trace_key(g["grasp_id"], "min_distance")].astype(np.float64)
+                dist = npz.grasp(g["grasp_id"], ("min_distance",))["min_distance"]
+                dist = dist.astype(np.float64)
                 # the label's target stops at contact end (3.3.4), so the speeds do too
                 end = usable_interval(speed, dist, dt, labels["settle"],
                                       labels["contact_loss_s"]).contact_end  # fmt: skip

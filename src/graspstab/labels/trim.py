@@ -10,10 +10,9 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from graspstab.common.units import ms_of
 
-def ms_of(window_s: float) -> int:
-    """A window length in whole milliseconds: the wildcard that names a trimmed dataset."""
-    return round(1000 * window_s)
+__all__ = ["ms_of", "trim_same_end"]  # ms_of: the trimmed datasets' names, from common.units
 
 
 def trim_same_end(

@@ -16,7 +16,7 @@ import numpy as np
 import polars as pl
 import torch
 
-from graspstab.common.io import read_json
+from graspstab.common.io import read_json, read_parquet
 from graspstab.labels.label_windows import load_windows, normalisation
 
 SPLITS = ("train", "val", "test")
@@ -87,7 +87,7 @@ def load_window_data(
     ``assignment`` maps object id to split; objects it does not name are dropped (an assignment
     over a subset of objects). None keeps the dataset's own splits and stored statistics."""
     root = Path(dataset_dir)
-    index = pl.read_parquet(root / "index.parquet")
+    index = read_parquet(root / "index.parquet")
     windows = load_windows(root)
     if len(index) != len(windows):
         raise DatasetError(

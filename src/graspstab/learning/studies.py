@@ -12,7 +12,7 @@ import numpy as np
 import polars as pl
 import torch
 
-from graspstab.common.io import read_json, write_json, write_parquet
+from graspstab.common.io import read_json, read_parquet, write_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.learning import aggregate
 from graspstab.learning.data import load_window_data
@@ -106,7 +106,7 @@ def aggregate_sweep(
     records = _records(metrics)
     runs = aggregate.run_rows(records, [{"window_s": r["window_s"]} for r in records])
     summary = aggregate.mean_std(runs, ["family", "window_s", "split"])
-    latency = pl.read_parquet(latency_table).filter(pl.col("study") == "sweep")
+    latency = read_parquet(latency_table).filter(pl.col("study") == "sweep")
     val = (
         summary.filter(pl.col("split") == "val")
         .select("family", "window_s", "auprc_mean", "auprc_std")

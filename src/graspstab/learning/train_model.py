@@ -21,7 +21,7 @@ import torch
 
 from graspstab.common.io import atomic_path, write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.common.provenance import code_version, stable_hash
+from graspstab.common.provenance import code_version, compute_platform, stable_hash
 from graspstab.learning.data import WindowData, load_window_data
 from graspstab.learning.metrics import (
     METRIC_KEYS,
@@ -147,6 +147,7 @@ def train_model(
         **metrics,
         **dict(extra or {}),
         "code_version": code_version("learning", "labels"),
+        "platform": compute_platform(),
         "params": params,
         "params_hash": stable_hash(params),
     }

@@ -23,7 +23,7 @@ import torch
 
 from graspstab.common.io import write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.common.provenance import code_version, stable_hash
+from graspstab.common.provenance import code_version, compute_platform, stable_hash
 from graspstab.learning.data import load_window_data
 from graspstab.learning.models import build_model
 from graspstab.learning.train import TrainSettings, fit
@@ -193,6 +193,7 @@ def tune_model(
         "study_name": study_name,
         "storage": url.split("://")[0],
         "code_version": code_version("learning", "labels"),
+        "platform": compute_platform(),
         "params": params,
         "params_hash": stable_hash(params),
     }

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from graspstab.assets.mesh_file import describe, load_object_mesh
 from graspstab.common.io import atomic_path, save_npy, save_npz, write_json
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
@@ -24,7 +25,7 @@ from .frame import to_upright_com_frame
 from .inertia import compute_inertia
 from .mjcf import write_object_mjcf
 from .repair import repair_mesh
-from .sdf import SDFGrid
+from .sdf import SDFGrid, check_grid_size
 from .surface import sample_hull_points
 
 log = logging.getLogger("graspstab.objects")
@@ -54,12 +55,15 @@ DEFAULT_PARAMS: dict[str, Any] = {
 }
 
 
-def load_mesh(path: str | os.PathLike[str]) -> trimesh.Trimesh:
-    """Load a mesh file as one triangle mesh, unprocessed, ignoring textures and materials."""
-    mesh = trimesh.load(Path(path), force="mesh", process=False, skip_materials=True)
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise ValueError(f"{path}: no triangle mesh could be read")
-    return trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+def load_mesh(
+    path: str | os.PathLike[str],
+    object_id: str = "",
+    user_file: str | os.PathLike[str] | None = None,
+) -> trimesh.Trimesh:
+    """Load an OBJ file as one triangle mesh, unprocessed, ignoring textures and materials;
+    :class:`~graspstab.assets.mesh_file.MeshFileError` (naming the object and ``user_file``, the
+    user's own file it was copied from) if it is not a readable OBJ of a hand-held size."""
+    return load_object_mesh(path, object_id, user_file)
 
 
 def _section(params: dict[str, Any], key: str) -> dict[str, Any]:
@@ -79,12 +83,14 @@ def preprocess_object(
 
     Writes ``mesh.obj``, ``convex_parts.npz``, ``object.xml``, ``sdf.npz``, ``hull_points.npy``
     and ``meta.json`` (last) into ``out_dir``, each atomically. Missing ``params`` sections or keys
-    fall back to :data:`DEFAULT_PARAMS`.
+    fall back to :data:`DEFAULT_PARAMS`. A bad mesh (not OBJ, unreadable, not of hand-held size)
+    or a signed-distance grid over the node cap fails before the slow steps, naming the object and
+    the file, and creates nothing. (A user's own ``mesh:`` passed the same checks in the fetch
+    step, whose message names it; this entry point reads only its declared input, the copy.)
     """
     if log_file is not None:
         setup_logging(log_file)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
 
     @contextmanager
@@ -97,7 +103,7 @@ def preprocess_object(
 
     t_start = time.perf_counter()
     with step("load"):
-        raw = load_mesh(mesh_path)
+        raw = load_mesh(mesh_path, object_id)
     with step("repair"):
         rp = _section(params, "repair")
         mesh, report = repair_mesh(
@@ -109,17 +115,21 @@ def preprocess_object(
         )
     with step("frame"):
         mesh, rot, translation = to_upright_com_frame(mesh, rotation_deg)
+    sp = _section(params, "sdf")
+    what = describe(object_id, mesh_path)
+    # before the slow steps: a grid over the node cap fails now, with the spacing that would fit
+    check_grid_size(mesh.bounds, float(sp["spacing"]), float(sp["margin"]), what)
     with step("inertia"):
         inertia = compute_inertia(mesh, float(mass))
     with step("decompose"):
         parts = convex_decomposition(mesh, _section(params, "coacd"))
     with step("sdf"):
-        sp = _section(params, "sdf")
-        grid = SDFGrid.build(mesh, spacing=float(sp["spacing"]), margin=float(sp["margin"]))
+        grid = SDFGrid.build(mesh, float(sp["spacing"]), float(sp["margin"]), what)
     with step("hull_points"):
         hp = _section(params, "hull_points")
         hull_points = sample_hull_points(mesh, count=int(hp["count"]), seed=int(hp["seed"]))
     with step("write"):
+        out.mkdir(parents=True, exist_ok=True)  # only now: a failed step leaves no folder behind
         with atomic_path(out / "mesh.obj") as tmp:
             tmp.write_text(trimesh.exchange.obj.export_obj(mesh, include_normals=False))
         arrays: dict[str, np.ndarray] = {"count": np.int64(len(parts))}

@@ -11,10 +11,14 @@ box) and extended: ``dist = d(c) + |p - c|`` and ``normal = (p - c) / |p - c|``.
 object lies inside the box, the true distance is between ``|p - c|`` and ``d(c) + |p - c|``; the
 estimate is continuous across the box boundary and grows with distance, so optimisers still get
 pushed towards the object. With the default 5 cm margin such points are far from the object.
+
+The grid is capped at :data:`MAX_NODES` nodes, checked before anything is allocated: a mesh in the
+wrong units or a too fine spacing fails with the size it would need instead of exhausting memory.
 """
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +27,68 @@ import numpy as np
 import trimesh
 
 from graspstab.common.io import save_npz
+
+#: Most grid nodes one signed-distance grid may have (2^24, ~16.8 million). Building needs about
+#: :data:`BUILD_BYTES_PER_NODE` bytes a node at its peak (query points, libigl's outputs), so the
+#: cap keeps a build under ~2 GB, within the preprocessing job's memory; at the default 1.5 mm
+#: spacing and 5 cm margin it admits a 0.28 m cube or a 0.5 x 0.2 x 0.2 m box.
+MAX_NODES = 2**24
+BUILD_BYTES_PER_NODE = 120
+SPACING_KEY = "preprocess.sdf.spacing"
+MAX_SPACING = 0.01  # the largest spacing the config schema allows [m]
+MARGIN_KEY = "preprocess.sdf.margin"
+
+
+class SDFGridTooLarge(ValueError):
+    """The grid a mesh would need exceeds :data:`MAX_NODES`; the message says what to change."""
+
+
+def grid_shape(bounds: np.ndarray, spacing: float, margin: float) -> tuple[int, int, int]:
+    """Nodes per axis of the grid over ``bounds`` (2, 3) plus ``margin`` at ``spacing`` [m]."""
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    # python ints: a mesh in the wrong units must give its true (huge) size, not an overflow
+    nx, ny, nz = (math.ceil((hi[i] + margin - (lo[i] - margin)) / spacing) + 1 for i in range(3))
+    return nx, ny, nz
+
+
+def check_grid_size(
+    bounds: np.ndarray, spacing: float, margin: float, what: str = "mesh"
+) -> tuple[int, int, int]:
+    """The grid shape, or :class:`SDFGridTooLarge` naming ``what``, the nodes it would need and
+    the spacing that would fit under :data:`MAX_NODES`."""
+    if not spacing > 0 or margin < 0:
+        raise ValueError(f"need spacing > 0 and margin >= 0, got {spacing}, {margin}")
+    if not np.all(np.isfinite(bounds)):
+        raise ValueError(f"{what}: non-finite bounds {np.asarray(bounds).tolist()}")
+    shape = grid_shape(bounds, spacing, margin)
+    nodes = math.prod(shape)
+    if nodes <= MAX_NODES:
+        return shape
+    extents = np.asarray(bounds[1], dtype=np.float64) - np.asarray(bounds[0], dtype=np.float64)
+    # the spacing to suggest: the volume estimate, rounded up to 0.1 mm, raised until it fits
+    estimate = (float(np.prod(extents + 2 * margin)) / MAX_NODES) ** (1 / 3)
+    fits = max(math.ceil(1e4 * estimate) / 1e4, spacing, 1e-4)
+    while math.prod(grid_shape(bounds, fits, margin)) > MAX_NODES:
+        fits = math.ceil(1e4 * fits * 1.01 + 1) / 1e4
+    size = " x ".join(str(n) for n in shape)
+    box = " x ".join(f"{e:.4g}" for e in extents)
+    if fits <= MAX_SPACING:
+        fix = (
+            f"Raise {SPACING_KEY} to at least {fits:g} m (e.g. --config "
+            f"'preprocess={{sdf: {{spacing: {fits:g}}}}}'; coarser spacing means larger distance "
+            f"errors) or lower {MARGIN_KEY}."
+        )
+    else:
+        fix = (
+            f"Not even the coarsest allowed spacing ({MAX_SPACING:g} m) fits: is the mesh in "
+            "metres? Rescale it."
+        )
+    raise SDFGridTooLarge(
+        f"{what}: its signed-distance grid would need {size} = {nodes:,} nodes "
+        f"(~{nodes * BUILD_BYTES_PER_NODE / 1e9:,.3g} GB to build) for its {box} m bounding box "
+        f"plus a {margin:g} m margin at {SPACING_KEY} = {spacing:g} m, more than the cap of "
+        f"{MAX_NODES:,} nodes. {fix}"
+    )
 
 
 def exact_signed_distance(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
@@ -57,13 +123,18 @@ class SDFGrid:
         return self.origin + self.spacing * (np.asarray(self.shape) - 1)
 
     @classmethod
-    def build(cls, mesh: trimesh.Trimesh, spacing: float = 0.0015, margin: float = 0.05) -> SDFGrid:
-        """Sample the exact signed distance of ``mesh`` on a grid covering its box plus margin."""
-        if not spacing > 0 or margin < 0:
-            raise ValueError(f"need spacing > 0 and margin >= 0, got {spacing}, {margin}")
-        lo, hi = np.asarray(mesh.bounds, dtype=np.float64)
-        lo = lo - margin
-        shape = np.ceil((hi + margin - lo) / spacing).astype(int) + 1
+    def build(
+        cls,
+        mesh: trimesh.Trimesh,
+        spacing: float = 0.0015,
+        margin: float = 0.05,
+        what: str = "mesh",
+    ) -> SDFGrid:
+        """Sample the exact signed distance of ``mesh`` on a grid covering its box plus margin;
+        :class:`SDFGridTooLarge` (naming ``what``) before allocating more than the node cap."""
+        bounds = np.asarray(mesh.bounds, dtype=np.float64)
+        shape = np.asarray(check_grid_size(bounds, spacing, margin, what))
+        lo = bounds[0] - margin
         axes = [lo[i] + spacing * np.arange(shape[i]) for i in range(3)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         values = exact_signed_distance(mesh, grid).reshape(shape).astype(np.float32)

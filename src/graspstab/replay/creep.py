@@ -44,12 +44,12 @@ BOX = """
 """
 
 
-def box_creep(
-    contact: dict[str, Any], squeeze: float = HELD_SQUEEZE, seconds: float = 4.0,
-    dt: float = 0.0005,
-) -> float:  # fmt: skip
-    """Mean |v_z| [m/s] of the squeezed box over the second half of ``seconds`` under gravity,
-    with the solver options (cone, impratio, noslip iterations) of ``contact``."""
+def squeezed_box(
+    contact: dict[str, Any], squeeze: float = HELD_SQUEEZE, dt: float = 0.0005
+) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The box between its two pads, each pressing with ``squeeze`` [N], under the solver options
+    of ``contact``: settled for 0.2 s without gravity, then gravity switched on (not yet
+    stepped). The analytic case for creep and for the load ramp."""
     spec = mujoco.MjSpec.from_string(BOX.format(dt=dt, mass=BOX_MASS))
     spec.option.cone = CONES[contact["cone"]]
     spec.option.impratio = float(contact["impratio"])
@@ -62,6 +62,16 @@ def box_creep(
     for _ in range(round(0.2 / dt)):
         mujoco.mj_step(model, data)
     model.opt.gravity[:] = (0.0, 0.0, -9.81)
+    return model, data
+
+
+def box_creep(
+    contact: dict[str, Any], squeeze: float = HELD_SQUEEZE, seconds: float = 4.0,
+    dt: float = 0.0005,
+) -> float:  # fmt: skip
+    """Mean |v_z| [m/s] of the squeezed box over the second half of ``seconds`` under gravity,
+    with the solver options (cone, impratio, noslip iterations) of ``contact``."""
+    model, data = squeezed_box(contact, squeeze, dt)
     n = round(seconds / dt)
     vz = np.empty(n)
     dof = model.jnt_dofadr[model.body("object").jntadr[0]]

@@ -1,13 +1,16 @@
 """The replay trace figure (cf. thesis fig. 3.7): motion, contact distance and fingertip forces.
 
-Panels: (A) object position, (B) displacement from the start (the labelling stage replaces this
-with the post-settling reference and adds the stable/unstable shading), (C) velocity, (D) speed,
-(E) the time derivative of speed, (F) d_t, (G) fingertip normal and (H) shear forces (eq. 18).
+Panels: (A) object position, (B) displacement from the start, (C) velocity, (D) speed, (E) the
+time derivative of speed, (F) d_t, (G) fingertip normal and (H) shear forces (eq. 18). The
+stable/unstable shading is the labelling stage's (``graspstab.labels.figure``), drawn through
+``decorate``: this stage knows nothing of labels.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -16,10 +19,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import polars as pl  # noqa: E402
 
+from graspstab.common.io import read_parquet, save_figure  # noqa: E402
 from graspstab.hand.names import FINGERS  # noqa: E402
-from graspstab.replay.replay_grasps import trace_key  # noqa: E402
-
-CHANNELS = ("position", "velocity", "min_distance", "normal", "shear")
+from graspstab.replay.traces import read_traces  # noqa: E402
 
 
 def pick_example(summary: pl.DataFrame) -> int:
@@ -35,12 +37,11 @@ def plot_replay_trace(
     dt: float,
     out_path: str | Path,
     title: str,
-    shading: tuple[int, int, np.ndarray] | None = None,
+    decorate: Callable[[list[Any], np.ndarray], None] | None = None,
 ) -> None:
     """Eight stacked panels over time (seconds); units in the axis labels. The free fall after
     the last hand-object contact is cut at 0.1 s past it (it would set every motion axis).
-    ``shading`` = (settle index, contact end, u_t) shades the usable interval's unstable periods
-    red and stable periods green (eq. 23)."""
+    ``decorate(axes, t)`` draws on top (the labelling stage's shading)."""
     defined = np.flatnonzero(np.isfinite(traces["min_distance"]))
     if len(defined):
         end = min(len(traces["min_distance"]), int(defined[-1]) + 1 + round(0.1 / dt))
@@ -68,41 +69,28 @@ def plot_replay_trace(
         if len(lines) > 1:
             ax.legend(fontsize=6, ncol=5, loc="upper right")
     axes[3].axhline(1.2, color="k", ls="--", lw=0.6)  # 3.3.2's instability threshold
-    if shading is not None:
-        from graspstab.labels.figure import shade_periods
-
-        settle, end, u = shading
-        shade_periods(axes, t, u, settle, min(end, len(t)))
+    if decorate is not None:
+        decorate(list(axes), t)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    Path(out_path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_path, dpi=110)
+    save_figure(out_path, fig, dpi=110)
     plt.close(fig)
 
 
-def plot_replay_example(
-    summary_path: str | Path,
-    traces_path: str | Path,
-    dt: float,
-    out_path: str | Path,
-    labels: dict | None = None,
-) -> int:
-    """Draw :func:`pick_example`'s replay of one shard, shaded with the labelling rules of
-    ``labels`` (the labels config slice) when given; returns its grasp id."""
-    from graspstab.labels.interval import usable_interval
-    from graspstab.labels.windows import timestep_labels
-
-    summary = pl.read_parquet(summary_path)
+def example_traces(
+    summary_path: str | Path, traces_path: str | Path
+) -> tuple[str, int, dict[str, np.ndarray]]:
+    """:func:`pick_example`'s replay of one shard: its object, grasp id and traces."""
+    summary = read_parquet(summary_path)
     gid = pick_example(summary)
-    with np.load(traces_path) as npz:
-        traces = {c: npz[trace_key(gid, c)] for c in CHANNELS}
-    shading = None
-    if labels is not None:
-        speed = np.linalg.norm(traces["velocity"].astype(np.float64), axis=1)
-        ui = usable_interval(speed, traces["min_distance"].astype(np.float64), dt,
-                             labels["settle"], labels["contact_loss_s"])  # fmt: skip
-        shading = (ui.settle_index, ui.contact_end, timestep_labels(speed, labels["v_slip"]))
-    obj = summary["object"][0]
-    plot_replay_trace(traces, dt, out_path, f"{obj}, grasp {gid} (cf. thesis fig. 3.7)", shading)
+    return summary["object"][0], gid, read_traces(traces_path, gid)
+
+
+def plot_replay_example(
+    summary_path: str | Path, traces_path: str | Path, dt: float, out_path: str | Path
+) -> int:
+    """Draw :func:`pick_example`'s replay of one shard, unlabelled; returns its grasp id."""
+    obj, gid, traces = example_traces(summary_path, traces_path)
+    plot_replay_trace(traces, dt, out_path, f"{obj}, grasp {gid} (cf. thesis fig. 3.7)")
     return gid

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import time
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -21,19 +22,16 @@ import mujoco
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import save_npz, write_parquet
+from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
 from graspstab.common.runs import earliest_run
+from graspstab.replay.ramp import ramp_direction, ramp_magnitude, ramp_settings
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
+from graspstab.replay.traces import trace_key
 
 log = logging.getLogger("graspstab.replay")
-
-
-def trace_key(grasp_id: int, channel: str) -> str:
-    """The npz member of one grasp's channel."""
-    return f"g{int(grasp_id)}_{channel}"
 
 
 def summarise_replay(
@@ -62,6 +60,26 @@ def summarise_replay(
     }
 
 
+def grasp_load(
+    params: dict[str, Any], scene: Any, gravity_hand: np.ndarray, object_id: str, grasp_id: int,
+    steps: int,
+) -> np.ndarray | None:  # fmt: skip
+    """The load-ramp force of one grasp (steps x 3, hand frame), or None under gravity alone
+    (3.2, the reference's protocol). The direction is drawn from the grasp's own stream."""
+    if params["protocol"] == "gravity":
+        return None
+    ramp = ramp_settings(params["ramp"])
+    seq = np.random.SeedSequence([int(ramp["seed"]), zlib.crc32(object_id.encode()), grasp_id])
+    direction = ramp_direction(ramp["directions"], gravity_hand, np.random.default_rng(seq))
+    weight = float(scene.model.body_subtreemass[scene.object_body]) * float(
+        np.linalg.norm(gravity_hand)
+    )
+    dt = float(params["timestep"])
+    magnitude = ramp_magnitude(steps, dt, float(ramp["start_s"]), float(ramp["rate"]),
+                               float(ramp["ceiling"]), weight)  # fmt: skip
+    return magnitude[:, None] * direction[None]
+
+
 def replay_grasps(
     object_id: str,
     object_dir: str | Path,
@@ -75,7 +93,7 @@ def replay_grasps(
     """Replay every grasp of ``grasp_table``; write the traces and the summary table."""
     setup_logging(log_file)
     t0 = time.perf_counter()
-    grasps = pl.read_parquet(grasp_table)
+    grasps = read_parquet(grasp_table)
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
     dt = float(params["timestep"])
@@ -91,7 +109,10 @@ def replay_grasps(
         joints = np.array([g[f"theta_{k:02d}"] for k in range(16)])
         start = time.perf_counter()
         place_grasp(scene, data, pos, quat, joints, gravity)
-        result = run_replay(scene.model, data, scene.layout, steps, chunk, stop_loss)
+        load = grasp_load(params, scene, scene.model.opt.gravity.copy(), object_id,
+                          int(g["grasp_id"]), steps)  # fmt: skip
+        result = run_replay(scene.model, data, scene.layout, steps, chunk, stop_loss, load,
+                            scene.object_body)  # fmt: skip
         traces = to_object_frame(result.traces, pos, quat)
         for channel, values in traces.items():
             arrays[trace_key(g["grasp_id"], channel)] = values
@@ -124,6 +145,7 @@ def replay_grasps(
         "frame": "object frame (centre of mass, +z up); row t = state before step t",
         "contact_model": params["contact"]["name"],
         "squeeze_rad": float(params["squeeze"]["angle"]),
+        "protocol": params["protocol"],
         "mujoco_version": mujoco.__version__,
         "provenance": provenance("replay", params),
     }

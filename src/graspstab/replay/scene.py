@@ -30,6 +30,7 @@ class ReplayScene:
     model: mujoco.MjModel
     layout: SensorLayout
     object_qpos: int  # address of the object's free joint in qpos (position, then quaternion)
+    object_body: int  # the object's body id (where the load-ramp protocol applies its force)
     finger_qpos: np.ndarray  # (16,) qpos addresses, hand.json joint order
     finger_ctrl: np.ndarray  # (16,) actuator ids, same order
     ctrl_range: np.ndarray  # (16, 2) servo target range [rad] (the joint limits), same order
@@ -85,6 +86,7 @@ def build_replay_scene(
         model=model,
         layout=sensor_layout(model, fingers, int(params["contact_slots"])),
         object_qpos=int(model.jnt_qposadr[joint]),
+        object_body=int(model.body(object_body).id),
         finger_qpos=np.array([model.joint(j).qposadr[0] for j in hand["joint_names"]]),
         finger_ctrl=ctrl,
         ctrl_range=model.actuator_ctrlrange[ctrl].copy(),
@@ -145,9 +147,12 @@ def place_grasp(
 def to_object_frame(
     traces: dict[str, np.ndarray], wrist_pos: np.ndarray, wrist_quat: np.ndarray
 ) -> dict[str, np.ndarray]:
-    """Positions and velocities recorded in the hand frame, expressed in the object frame."""
+    """Positions, velocities and the load-ramp force recorded in the hand frame, expressed in
+    the object frame."""
     rot, pos = hand_frame(wrist_pos, wrist_quat)
     out = dict(traces)
     out["position"] = (traces["position"].astype(np.float64) @ rot.T + pos).astype(np.float32)
-    out["velocity"] = (traces["velocity"].astype(np.float64) @ rot.T).astype(np.float32)
+    for vector in ("velocity", "load"):
+        if vector in traces:
+            out[vector] = (traces[vector].astype(np.float64) @ rot.T).astype(np.float32)
     return out

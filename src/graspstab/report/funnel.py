@@ -14,6 +14,10 @@ from typing import Any
 
 import polars as pl
 
+from graspstab.common.io import read_parquet
+from graspstab.learning.presentation import UNDEFINED
+from graspstab.report import html as H
+
 SPLITS = ("train", "val", "test")
 COLUMNS = ("annealed", "replayed", "diverged", "held", "usable", "windows", "unstable")
 
@@ -27,7 +31,7 @@ def funnel(
     candidate grasps annealed, replays run, replays that diverged, held to the end, usable
     grasps, labelled windows and unstable windows (baseline dataset)."""
     replays = (
-        pl.concat([pl.read_parquet(p, columns=["object", "diverged", "held_at_end"])
+        pl.concat([read_parquet(p, columns=["object", "diverged", "held_at_end"])
                    for p in replay_tables], how="vertical_relaxed")
         if replay_tables else None
     )  # fmt: skip
@@ -59,3 +63,29 @@ def funnel(
         values = [r[col] for r in rows]
         total[col] = None if any(v is None for v in values) else sum(values)
     return [*rows, total]
+
+
+def funnel_table(rows: Sequence[Mapping[str, Any]]) -> str:
+    """Candidate grasps through each stage, per object and in total."""
+
+    def cell(v: Any) -> str:
+        return UNDEFINED if v is None else f"{v:,}"
+
+    def rate(a: Any, b: Any) -> str:
+        return f"{a / b:.0%}" if a is not None and b else "—"
+
+    body = [
+        [r["object"], cell(r["annealed"]), cell(r["replayed"]), cell(r["diverged"]),
+         cell(r["held"]), cell(r["usable"]), rate(r["usable"], r["replayed"]),
+         cell(r["windows"]), cell(r["unstable"])]
+        for r in rows
+    ]  # fmt: skip
+    return H.table(
+        ["object", "annealed", "replayed", "diverged", "held to the end", "usable",
+         "usable / replayed", "windows", "unstable windows"],
+        body,
+        caption="Grasp funnel: candidate grasps annealed (3.1.4) → replayed (3.2; diverged "
+        "replays are dropped) → usable (at least one labelled window in the baseline dataset, "
+        "3.3; the labelling stage keeps no per-grasp usable interval, so an interval too short "
+        "for one window also counts as not usable) → labelled windows",
+    )  # fmt: skip

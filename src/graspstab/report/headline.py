@@ -13,10 +13,16 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.common.io import read_json
-from graspstab.learning.figures import defined_summary
+from graspstab.common.io import read_json, read_parquet
+from graspstab.learning.artefacts import StudyArtefacts
+from graspstab.learning.presentation import (
+    SPLIT_NAMES,
+    UNDEFINED,
+    defined_summary,
+    family_label,
+    finite,
+)
 from graspstab.report import html as H
-from graspstab.report.learning import UNDEFINED, fam, finite
 
 SPLITS = ("train", "val", "test")
 
@@ -44,7 +50,7 @@ class Figure:
 
 def _class_reason(rows: pl.DataFrame, split: str) -> str:
     """Why a ranking metric is undefined on a split: no unstable or no stable window."""
-    name = {"val": "validation", "test": "test"}.get(split, split)
+    name = SPLIT_NAMES.get(split, split)
     if rows.height and (rows["n_unstable"] == 0).all():
         return f"the {name} split holds no unstable window"
     if rows.height and (rows["n_unstable"] == rows["n"]).all():
@@ -65,12 +71,17 @@ def seed_figure(runs: pl.DataFrame, by: Sequence[str], metric: str, digits: int 
     return Figure(mean, std if finite(std) else None, reason, digits)
 
 
-def _runs(path: Path, **where: Any) -> pl.DataFrame | str:
+def _absent(path: Path | None) -> str:
+    """Why an artefact cannot be read: not given to the report, or not on disk."""
+    return "not given to the report" if path is None else f"{path} not produced"
+
+
+def _runs(path: Path | None, **where: Any) -> pl.DataFrame | str:
     """The rows of a runs.parquet matching ``where`` (window_s matched to the microsecond), or
     why there are none."""
-    if not path.exists():
-        return f"{path} not produced"
-    runs = pl.read_parquet(path)
+    if path is None or not Path(path).exists():
+        return _absent(path)
+    runs = read_parquet(path)
     for col, value in where.items():
         if col not in runs.columns:
             return f"{path.name} has no column {col!r}"
@@ -80,21 +91,21 @@ def _runs(path: Path, **where: Any) -> pl.DataFrame | str:
     return runs
 
 
-def baseline_figure(studies: Path, family: str, split: str, metric: str) -> Figure:
+def baseline_figure(a: StudyArtefacts, family: str, split: str, metric: str) -> Figure:
     """A metric of one family at the baseline window (4.3), mean ± std over seeds."""
-    runs = _runs(studies / "baseline" / "runs.parquet", family=family, split=split)
+    runs = _runs(a.baseline_runs, family=family, split=split)
     if isinstance(runs, str):
         return Figure(reason=runs)
     if runs.is_empty():
-        return Figure(reason=f"no {fam(family)} run in this run's baseline study")
+        return Figure(reason=f"no {family_label(family)} run in this run's baseline study")
     return seed_figure(runs, ["family", "split"], metric)
 
 
-def proxy_figure(studies: Path) -> Figure:
+def proxy_figure(a: StudyArtefacts) -> Figure:
     """The friction-ratio proxy's test AUPRC (4.7)."""
-    path = studies / "proxy.json"
-    if not path.exists():
-        return Figure(reason=f"{path} not produced")
+    path = a.proxy
+    if path is None or not Path(path).exists():
+        return Figure(reason=_absent(path))
     test = read_json(path).get("test", {})
     if finite(test.get("auprc")):
         return Figure(float(test["auprc"]))
@@ -108,11 +119,11 @@ def proxy_figure(studies: Path) -> Figure:
     return Figure(reason=why)
 
 
-def splits_figure(studies: Path) -> Figure:
+def splits_figure(a: StudyArtefacts) -> Figure:
     """Test AUPRC across the sampled split assignments (4.4): mean ± std over assignments."""
-    path = studies / "splits" / "summary.json"
-    if not path.exists():
-        return Figure(reason=f"{path} not produced")
+    path = a.splits_overview
+    if path is None or not Path(path).exists():
+        return Figure(reason=_absent(path))
     s = read_json(path)
     defined, total = s.get("defined", 0), s.get("assignments", 0)
     if not finite(s.get("mean")):
@@ -122,22 +133,22 @@ def splits_figure(studies: Path) -> Figure:
     return Figure(float(s["mean"]), float(std) if finite(std) else None, reason)
 
 
-def sweep_figure(studies: Path, family: str, window_s: float) -> Figure:
+def sweep_figure(a: StudyArtefacts, family: str, window_s: float) -> Figure:
     """Validation AUPRC of one sweep configuration (4.5), mean ± std over seeds."""
-    runs = _runs(studies / "sweep" / "runs.parquet", family=family, split="val")
+    runs = _runs(a.sweep_runs, family=family, split="val")
     if isinstance(runs, str):
         return Figure(reason=runs, digits=3)
     windows = sorted({float(w) for w in runs["window_s"]})
     runs = runs.filter((pl.col("window_s") - window_s).abs() < 1e-6)
     if runs.is_empty():
         have = ", ".join(f"{w:g}" for w in windows) or "none"
-        return Figure(reason=f"{fam(family)} at {window_s:g} s is not in this run's sweep "
+        return Figure(reason=f"{family_label(family)} at {window_s:g} s is not in this run's sweep "
                       f"(windows [s]: {have})", digits=3)  # fmt: skip
     return seed_figure(runs, ["family", "window_s", "split"], "auprc", digits=3)
 
 
 # (section, quantity, reference value as the thesis prints it, this run's figure)
-HEADLINE: list[tuple[str, str, str, Callable[[Path], Figure]]] = [
+HEADLINE: list[tuple[str, str, str, Callable[[StudyArtefacts], Figure]]] = [
     ("4.3", "GRU test AUPRC at the 0.20 s baseline window (mean ± std over seeds)",
      "98.43 ± 0.05 %", lambda s: baseline_figure(s, "gru", "test", "auprc")),
     ("4.3", "GRU test AUROC at the baseline window", "97.78 ± 0.07 %",
@@ -164,15 +175,15 @@ def gap_text(figure: Figure, reference: str) -> str:
     return f"{100 * float(figure.mean) - float(ref.group(1)):+.{figure.digits}f}"
 
 
-def headline_rows(studies: Path | None) -> list[list[str]]:
+def headline_rows(artefacts: StudyArtefacts | None) -> list[list[str]]:
     """[section, quantity, this run, reference, run - reference in points] for every headline
-    figure (``studies``: the results' studies directory, None when the report was given no
-    learning results)."""
+    figure (``artefacts``: the studies' artefacts, None when the report was given no learning
+    results)."""
 
-    def figure(fig: Callable[[Path], Figure]) -> Figure:
-        if studies is None:
+    def figure(fig: Callable[[StudyArtefacts], Figure]) -> Figure:
+        if artefacts is None:
             return Figure(reason="no learning results given to the report")
-        return fig(Path(studies))
+        return fig(artefacts)
 
     rows = []
     for sec, what, ref, fig in HEADLINE:
@@ -228,9 +239,7 @@ def run_scale(
 def scale_sentence(scale: Mapping[str, Any]) -> str:
     """The run's profile and scale as HTML, with the smoke-test warning in bold for quick runs."""
     w = scale["windows"]
-    windows = (
-        " / ".join(f"{w[s]:,} {s}" for s in SPLITS) + " windows" if w else "no window dataset"
-    )
+    windows = " / ".join(f"{w[s]:,} {s}" for s in SPLITS) + " windows" if w else "no window dataset"
     usable = scale["usable_grasps"]
     seeds = scale["seeds"]
     text = (
@@ -268,11 +277,11 @@ def scale_sentence(scale: Mapping[str, Any]) -> str:
     )
 
 
-def headline_section(scale: Mapping[str, Any], studies: Path | None) -> str:
+def headline_section(scale: Mapping[str, Any], artefacts: StudyArtefacts | None) -> str:
     """The scale sentence and the table of this run's figures beside the reference's."""
     return f'<p class="note">{scale_sentence(scale)}</p>' + H.table(
         ["section", "figure", "this run", "reference (thesis)", "run - reference [points]"],
-        headline_rows(studies),
+        headline_rows(artefacts),
         caption="Headline figures: this run beside the reference's published numbers "
         "(percent; 'undefined' gives the reason a value could not be computed)",
         cls="text",

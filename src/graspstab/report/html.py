@@ -31,16 +31,14 @@ def table(
     )
 
 
-def image(
-    path: Path | bytes, alt: str, caption: str = "", anchor: str = "", toc: str = ""
-) -> str:
+def image(path: Path | bytes, alt: str, caption: str = "", anchor: str = "", toc: str = "") -> str:
     """A PNG (file or bytes) embedded as a data URI inside a captioned figure; ``anchor`` gives
     the figure a stable id, ``toc`` its entry in the table of contents."""
     raw = path if isinstance(path, bytes) else Path(path).read_bytes()
     data = base64.b64encode(raw).decode("ascii")
     cap = f"<figcaption>{esc(caption)}</figcaption>" if caption else ""
     return (
-        f"<figure{_ids(anchor, toc)}><img alt=\"{esc(alt)}\" "
+        f'<figure{_ids(anchor, toc)}><img alt="{esc(alt)}" '
         f'src="data:image/png;base64,{data}">{cap}</figure>'
     )
 

@@ -12,13 +12,15 @@ import networkx as nx
 import polars as pl
 
 import graspstab
-from graspstab.common.io import read_json, write_text
+from graspstab.common.io import read_json, read_parquet, write_text
 from graspstab.common.provenance import stable_hash
+from graspstab.learning.artefacts import StudyArtefacts
+from graspstab.learning.presentation import UNDEFINED, finite
 from graspstab.report import dag
 from graspstab.report import html as H
-from graspstab.report.funnel import funnel
+from graspstab.report.funnel import funnel, funnel_table
 from graspstab.report.headline import headline_section, run_scale
-from graspstab.report.learning import UNDEFINED, finite, learning_section
+from graspstab.report.learning import learning_section
 from graspstab.report.provenance import (
     git_commit,
     package_versions,
@@ -194,7 +196,7 @@ def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path])
     """Replay outcomes per object (3.2), when the run got that far."""
     if not replay_summaries:
         return []
-    table = pl.concat([pl.read_parquet(p) for p in replay_summaries])
+    table = pl.concat([read_parquet(p) for p in replay_summaries])
     rows = []
     for (oid,), g in sorted(table.group_by("object"), key=lambda kv: kv[0][0]):
         rows.append(
@@ -213,8 +215,14 @@ def _replay_parts(replay_summaries: list[Path] | None, figures: dict[str, Path])
         H.heading(2, "replay", "Grasp replay"),
         H.table(
             [
-                "object", "replays", "held to the end", "contact lost (stopped early)",
-                "diverged", "median deepest contact [mm]", "simulated [s]", "wall [s]",
+                "object",
+                "replays",
+                "held to the end",
+                "contact lost (stopped early)",
+                "diverged",
+                "median deepest contact [mm]",
+                "simulated [s]",
+                "wall [s]",
             ],
             rows,
             caption="Replays under gravity (3.2), per object",
@@ -248,7 +256,7 @@ def _contact_parts(
                                                   " (our deviation: 3.2 holds the grasp's own "
                                                   "angles)")],
     ]  # fmt: skip
-    parts = [H.heading(3, "contact-model", "Contact model and what \"unstable\" means")]
+    parts = [H.heading(3, "contact-model", 'Contact model and what "unstable" means')]
     if speeds is not None:
         s = read_json(speeds)
 
@@ -353,8 +361,11 @@ def _stage_table(rows: Sequence[Mapping[str, Any]], own_rule: str = "report") ->
     total = sum(r["job_s"] or 0.0 for r in rows)
     body = []
     for r in rows:
-        unbenchmarked = "runs now: benchmark after this report" if r["rule"] == own_rule else (
-            "no benchmark file")
+        unbenchmarked = (
+            "runs now: benchmark after this report"
+            if r["rule"] == own_rule
+            else ("no benchmark file")
+        )
         jobs = str(r["jobs"])
         if r["dag_jobs"] is not None and r["dag_jobs"] != r["jobs"]:
             jobs += f" (DAG: {r['dag_jobs']})"
@@ -379,32 +390,6 @@ def _stage_table(rows: Sequence[Mapping[str, Any]], own_rule: str = "report") ->
         "the largest over the rule's jobs; 'DAG' is the job count in this run's DAG when it "
         "differs from the benchmarked jobs",
     )
-
-
-def _funnel_table(rows: Sequence[Mapping[str, Any]]) -> str:
-    """Candidate grasps through each stage, per object and in total."""
-
-    def cell(v: Any) -> str:
-        return UNDEFINED if v is None else f"{v:,}"
-
-    def rate(a: Any, b: Any) -> str:
-        return f"{a / b:.0%}" if a is not None and b else "—"
-
-    body = [
-        [r["object"], cell(r["annealed"]), cell(r["replayed"]), cell(r["diverged"]),
-         cell(r["held"]), cell(r["usable"]), rate(r["usable"], r["replayed"]),
-         cell(r["windows"]), cell(r["unstable"])]
-        for r in rows
-    ]  # fmt: skip
-    return H.table(
-        ["object", "annealed", "replayed", "diverged", "held to the end", "usable",
-         "usable / replayed", "windows", "unstable windows"],
-        body,
-        caption="Grasp funnel: candidate grasps annealed (3.1.4) → replayed (3.2; diverged "
-        "replays are dropped) → usable (at least one labelled window in the baseline dataset, "
-        "3.3; the labelling stage keeps no per-grasp usable interval, so an interval too short "
-        "for one window also counts as not usable) → labelled windows",
-    )  # fmt: skip
 
 
 def _provenance_parts(
@@ -432,7 +417,7 @@ def _provenance_parts(
         if benchmarks or counts
         else '<p class="note">No benchmark files given to the report.</p>',
         H.heading(3, "funnel", "Grasp funnel"),
-        _funnel_table(funnel_rows),
+        funnel_table(funnel_rows),
         H.heading(3, "configuration", "Resolved configuration"),
         "<details><summary>Resolved configuration (JSON)</summary><pre>"
         + H.esc(json.dumps(config, indent=2, sort_keys=True))
@@ -452,15 +437,16 @@ def write_report(
     replay_summaries: list[Path] | None = None,
     dataset_summary: Path | None = None,
     sweep_summaries: list[Path] | None = None,
-    learning_results: Path | None = None,
-    learning_figures: dict[str, Path] | None = None,
+    learning: StudyArtefacts | None = None,
+    learning_figures: Mapping[str, Path] | None = None,
     rule_benchmarks: Mapping[str, Sequence[Path]] | None = None,
     rulegraph: Path | None = None,
     jobgraph: Path | None = None,
     speeds_summary: Path | None = None,
 ) -> None:
-    """Assemble the report from the artefacts the workflow produced (the learning section from
-    ``learning_results``, the results directory, when given). ``benchmark_files`` are the
+    """Assemble the report from the artefacts the workflow produced, reading only the paths it
+    is given (the learning section and headline from ``learning``, the studies' artefacts, and
+    ``learning_figures``, when given). ``benchmark_files`` are the
     preprocessing benchmarks, ``rule_benchmarks`` every rule's (rule -> files), ``rulegraph``
     and ``jobgraph`` Snakemake's ``--rulegraph`` and ``--dag`` dot files."""
     metas = [read_json(p) for p in object_meta]
@@ -468,17 +454,13 @@ def write_report(
     hand = read_json(hand_json)
     summaries = [read_json(p) for p in grasp_summaries or []]
     dataset = read_json(dataset_summary) if dataset_summary is not None else None
-    results = Path(learning_results) if learning_results is not None else None
     graph = counts = None
     if rulegraph is not None and jobgraph is not None:
         graph, counts = dag.read_graph(rulegraph, jobgraph)
     dpi = int(config.get("report", {}).get("figure_dpi", 110))
     sections = [
         H.heading(2, "headline", "Headline: this run and the reference"),
-        headline_section(
-            run_scale(config, len(metas), summaries, dataset),
-            results / "studies" if results is not None else None,
-        ),
+        headline_section(run_scale(config, len(metas), summaries, dataset), learning),
         *_pipeline_parts(graph, counts, dpi),
         H.heading(2, "objects", "Objects"),
         _objects_section(config, metas, bench),
@@ -508,7 +490,7 @@ def write_report(
         *_replay_parts(replay_summaries, figures),
         *(_contact_parts(speeds_summary, figures, config["replay"]) if replay_summaries else []),
         *_dataset_parts(dataset_summary, sweep_summaries, figures),
-        *([learning_section(results, learning_figures or {}, config)] if results else []),
+        *([learning_section(learning, learning_figures or {}, config)] if learning else []),
         *_provenance_parts(
             config,
             rule_benchmarks or {"preprocess_object": benchmark_files},

@@ -20,7 +20,7 @@ import polars as pl
 import torch
 import trimesh
 
-from graspstab.common.io import read_json, write_parquet
+from graspstab.common.io import load_npz, read_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
 from graspstab.synthesis.anneal import AnnealSchedule, anneal, log_progress
@@ -130,9 +130,9 @@ def anneal_grasps(
         "%s shard %d: %d grasps x %d iterations, batches of %d, %d torch threads",
         object_id, shard, n, schedule.iterations, ann["batch_size"], torch.get_num_threads(),
     )  # fmt: skip
-    with np.load(hand_dir / "contact_candidates.npz") as cands:
-        cand_finger = cands["finger"].astype(str)
-        cand_distal = cands["region_kind"][cands["region"]].astype(str) == "distal"
+    cands = load_npz(hand_dir / "contact_candidates.npz")
+    cand_finger = cands["finger"].astype(str)
+    cand_distal = cands["region_kind"][cands["region"]].astype(str) == "distal"
     frames = []
     batch = int(ann["batch_size"])
     for lo in range(0, n, batch):

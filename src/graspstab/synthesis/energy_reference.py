@@ -1,7 +1,7 @@
 """A straightforward one-grasp-at-a-time energy (MuJoCo kinematics, numpy, no culling).
 
 It exists as an independent reference: tests check the batched torch energy against it, and the
-synthesis benchmark measures the batched annealer's speed-up over it (DESIGN.md, performance).
+synthesis benchmark measures the batched annealer's speed-up over it (docs/design.md, targets).
 """
 
 from __future__ import annotations

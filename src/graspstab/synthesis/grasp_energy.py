@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from graspstab.common.io import load_npy
 from graspstab.synthesis import energy as E
 from graspstab.synthesis.kinematics import BatchedHandKinematics
 from graspstab.synthesis.sdf_torch import TorchSDF
@@ -52,7 +53,7 @@ class GraspEnergy:
         object_dir = Path(object_dir)
         kin = BatchedHandKinematics(hand_dir, dtype=dtype)
         sdf = TorchSDF.load(object_dir / "sdf.npz", dtype=dtype)
-        hull = np.load(object_dir / "hull_points.npy")
+        hull = load_npy(object_dir / "hull_points.npy")
         return cls(kin, sdf, hull, weights, clusters=clusters)
 
     def terms(

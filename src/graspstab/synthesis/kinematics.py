@@ -26,7 +26,6 @@ given in the continuous 6-D form of 3.1.1. Everything is differentiable.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +34,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from graspstab.common.io import load_npz, read_json
 from graspstab.synthesis.rotation import rot6d_to_matrix
 
 HAND_XML = "hand.xml"
@@ -116,7 +116,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
 def _load_json(path: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"{path} not found: pass the hand stage's output directory")
-    return json.loads(path.read_text())
+    return read_json(path)
 
 
 def _load_points(path: Path, *extra: str) -> dict:
@@ -125,9 +125,9 @@ def _load_points(path: Path, *extra: str) -> dict:
         raise FileNotFoundError(
             f"{path} not found: pass the hand stage's output directory (rule build_hand)"
         )
-    with np.load(path) as npz:
-        out = {k: np.asarray(npz[k], dtype=np.float64) for k in ("points", *extra)}
-        out["body"] = [str(b) for b in npz["body"]]
+    npz = load_npz(path)
+    out = {k: np.asarray(npz[k], dtype=np.float64) for k in ("points", *extra)}
+    out["body"] = [str(b) for b in npz["body"]]
     return out
 
 

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import write_json
+from graspstab.common.io import read_parquet, write_json
 from graspstab.synthesis.anneal_grasps import FINGERS
 from graspstab.synthesis.grasp_energy import TERMS
 
@@ -22,7 +22,7 @@ def read_grasp_tables(paths: Sequence[str | Path]) -> pl.DataFrame:
     """Concatenate shard tables (one row per candidate grasp)."""
     if not paths:
         raise ValueError("no grasp tables given")
-    return pl.concat([pl.read_parquet(p) for p in paths])
+    return pl.concat([read_parquet(p) for p in paths])
 
 
 def _quantiles(values: np.ndarray) -> dict[str, float]:

@@ -1,0 +1,88 @@
+"""Config checks the schema cannot express: finite numbers, ordered ranges, unique seeds, windows
+that name distinct datasets. Each message names the dotted field(s), the value and the fix."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+from graspstab.common.units import ms_of
+from graspstab.config.errors import ConfigError
+
+FIX = "Fix it in config/ or in your --config override."
+
+
+def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _leaves(value, f"{path}.{key}" if path else str(key))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _leaves(value, f"{path}[{i}]")
+    else:
+        yield path, node
+
+
+def check_finite(cfg: dict[str, Any]) -> None:
+    """Every number is finite: NaN passes every bound (``nan < 0`` and ``nan > 0`` are both
+    false), so a NaN threshold would silently label everything one class."""
+    bad = [f"{p} = {v}" for p, v in _leaves(cfg) if isinstance(v, float) and not math.isfinite(v)]
+    if bad:
+        raise ConfigError(f"non-finite numbers in the configuration: {', '.join(bad)}. {FIX}")
+
+
+def _fail(message: str) -> None:
+    raise ConfigError(f"{message} {FIX}")
+
+
+def _unique(values: list[Any], field: str) -> None:
+    dupes = sorted({v for v in values if values.count(v) > 1}, key=str)
+    if dupes:
+        _fail(f"{field} = {values} repeats {dupes}: each entry must appear once (a repeated seed "
+              "would count one run twice in every mean and std).")  # fmt: skip
+
+
+def check_relations(cfg: dict[str, Any]) -> None:
+    """Relations between fields (run after the schema, so every value has its type)."""
+    labels = cfg["labels"]
+    if not labels["label_low"] < labels["label_high"]:
+        _fail(f"labels.label_low = {labels['label_low']} must be below labels.label_high = "
+              f"{labels['label_high']} (3.3.4: r <= low is stable, r >= high unstable, between "
+              "is ambiguous and dropped); swap them or narrow the band.")  # fmt: skip
+    lo, hi = cfg["synthesis"]["pregrasp"]["standoff"]
+    if lo > hi:
+        _fail(f"synthesis.pregrasp.standoff = [{lo}, {hi}] is reversed: give [min, max] in metres.")
+    ann = cfg["synthesis"]["annealing"]
+    if not ann["temperature_start"] > ann["temperature_end"]:
+        _fail(f"synthesis.annealing.temperature_start = {ann['temperature_start']} must be above "
+              f"temperature_end = {ann['temperature_end']} (3.1.4: T decays from start to end).")
+    for group, entries in (cfg["tune"].get("space") or {}).items():
+        for name, entry in (entries or {}).items():
+            if isinstance(entry, dict) and not entry["low"] <= entry["high"]:
+                _fail(f"tune.space.{group}.{name}: low = {entry['low']} is above high = "
+                      f"{entry['high']}.")  # fmt: skip
+            if isinstance(entry, dict) and entry.get("log") and not entry["low"] > 0:
+                _fail(f"tune.space.{group}.{name}: a log range needs low > 0, got {entry['low']}.")
+    for field in ("train.seeds", "sweep.seeds", "splits.seeds", "sweep.windows_s"):
+        section, key = field.split(".")
+        _unique(list(cfg[section][key]), field)
+    windows = list(cfg["sweep"]["windows_s"])
+    by_ms: dict[int, list[float]] = {}
+    for w in windows:
+        by_ms.setdefault(ms_of(w), []).append(w)
+    for ms, same in sorted(by_ms.items()):
+        if ms < 1:
+            _fail(f"sweep.windows_s holds {same[0]} s, under one millisecond.")
+        if len(same) > 1:
+            _fail(f"sweep.windows_s holds {same}, which all round to {ms} ms: the sweep's datasets "
+                  "are named in whole milliseconds, so give distinct millisecond lengths.")
+    longest = max(windows)
+    for field in ("tune.window_s", "splits.window_s"):
+        section, key = field.split(".")
+        w = cfg[section][key]
+        if w > longest:
+            _fail(f"{field} = {w} s is longer than the longest sweep window ({longest} s, "
+                  "sweep.windows_s): its dataset is trimmed from the sweep's reference dataset, "
+                  "so add a window of at least that length to sweep.windows_s or shorten "
+                  f"{field}.")  # fmt: skip

@@ -1,0 +1,117 @@
+"""How the chapter-4 results are named and shown, in one place for the figures and the report.
+
+No plotting here (no matplotlib import), so the report reads its names, orders and undefined-value
+rules without pulling in a plotting backend: family names and order, split and metric names, the
+"undefined" marker, the 0/0-as-undefined summary of runs, and the learning figures' names (the one
+list that rule ``plot_learning``, :mod:`graspstab.learning.figures` and the report share).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import polars as pl
+
+from graspstab.learning.aggregate import mean_std
+
+#: Every learning figure of rule ``plot_learning`` (name -> ``<name>.png``), in thesis order.
+LEARNING_FIGURES = (
+    "benchmark",
+    "confusion",
+    "objects",
+    "splits",
+    "sweep",
+    "latency",
+    "operating_points",
+    "threshold_transfer",
+    "reliability",
+    "proxy",
+    "tuning",
+)
+#: Output file name of each learning figure.
+FIGURES = {name: f"{name}.png" for name in LEARNING_FIGURES}
+
+FAMILY_ORDER = ("cnn", "gru", "lstm")
+FAMILY_LABELS = {"cnn": "CNN", "gru": "GRU", "lstm": "LSTM"}
+
+UNDEFINED = "undefined"
+SPLITS = ("val", "test")
+SPLIT_NAMES = {"val": "validation", "test": "test"}
+
+THRESHOLD_METRICS = ("accuracy", "precision", "recall", "f1")
+RANKING_METRICS = ("auroc", "auprc")
+METRICS = (*THRESHOLD_METRICS, *RANKING_METRICS)
+#: Metric names in running text and tables.
+METRIC_NAMES = {
+    "accuracy": "accuracy",
+    "precision": "precision",
+    "recall": "recall",
+    "f1": "F1",
+    "auroc": "AUROC",
+    "auprc": "AUPRC",
+}
+#: Metric names on figure axes and titles (matplotlib mathtext).
+METRIC_LABELS = {
+    "accuracy": "Accuracy",
+    "precision": "Precision",
+    "recall": "Recall",
+    "f1": "F$_1$",
+    "auroc": "AUROC",
+    "auprc": "AUPRC",
+}
+
+
+def finite(value: Any) -> bool:
+    """True for a real, finite number: None (strict JSON's undefined) and NaN are not."""
+    try:
+        return value is not None and math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def as_float(value: Any) -> float:
+    """``value`` as a float, NaN when it is undefined (None, NaN, not a number)."""
+    return float(value) if finite(value) else float("nan")
+
+
+def family_label(family: str) -> str:
+    """'gru' -> 'GRU' (an unknown family in upper case)."""
+    return FAMILY_LABELS.get(family, str(family).upper())
+
+
+def ordered_families(names: Iterable[str]) -> list[str]:
+    """The thesis order (CNN, GRU, LSTM), then any other family alphabetically."""
+    present = set(names)
+    return [f for f in FAMILY_ORDER if f in present] + sorted(present - set(FAMILY_ORDER))
+
+
+def object_label(obj: str) -> str:
+    """'077_rubiks_cube' -> 'rubiks cube'."""
+    return re.sub(r"^\d+_", "", str(obj)).replace("_", " ")
+
+
+def rows_by(frame: pl.DataFrame, keys: Sequence[str]) -> dict[tuple, dict[str, Any]]:
+    """The rows of ``frame`` keyed by their values of ``keys`` (a tuple, also for one key)."""
+    return {tuple(r[k] for k in keys): r for r in frame.iter_rows(named=True)}
+
+
+def undefined_as_nan(frame: pl.DataFrame) -> pl.DataFrame:
+    """Precision, recall and F1 as NaN where scikit-learn's zero_division=0 stored 0 for 0/0:
+    recall with no unstable window, precision with none predicted unstable, F1 with neither.
+    ``frame`` needs tp, fp, fn and the three metrics (runs or objects table)."""
+    pos = pl.col("tp") + pl.col("fn")
+    pred = pl.col("tp") + pl.col("fp")
+    nan = pl.lit(float("nan"))
+    return frame.with_columns(
+        pl.when(pos == 0).then(nan).otherwise(pl.col("recall")).alias("recall"),
+        pl.when(pred == 0).then(nan).otherwise(pl.col("precision")).alias("precision"),
+        pl.when(pos + pred == 0).then(nan).otherwise(pl.col("f1")).alias("f1"),
+    )
+
+
+def defined_summary(runs: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
+    """Mean ± std over seeds (as the studies' summary.parquet) with 0/0 metrics undefined."""
+    return mean_std(undefined_as_nan(runs), by)

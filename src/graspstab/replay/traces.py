@@ -1,0 +1,54 @@
+"""The replay traces' file layout in one place: member names and the reader every later stage uses.
+
+A shard's traces are one compressed ``.npz`` whose members are ``g<grasp id>_<channel>``; the
+labelling stage, the figures and the harnesses read them only through :func:`read_traces`, so the
+layout can change here alone and a later stage never imports the replay engine.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+
+from graspstab.common.io import reading
+
+# Everything a replay records per time step (object frame): position, velocity, d_t, eq. 18 forces.
+CHANNELS = ("position", "velocity", "min_distance", "normal", "shear")
+# The external force of the load-ramp protocol (object frame) [N]; absent under gravity alone.
+LOAD = "load"
+
+
+def trace_key(grasp_id: int, channel: str) -> str:
+    """The npz member of one grasp's channel."""
+    return f"g{int(grasp_id)}_{channel}"
+
+
+class TraceFile:
+    """One shard's traces, open for reading (use as a context manager)."""
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = path
+        with reading(path):
+            self._npz = np.load(path, allow_pickle=False)
+
+    def __enter__(self) -> TraceFile:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self._npz.close()
+
+    def grasp(self, grasp_id: int, channels: Iterable[str] = CHANNELS) -> dict[str, np.ndarray]:
+        """The named channels of one grasp; a missing or truncated member names the file."""
+        with reading(self.path):
+            return {c: self._npz[trace_key(grasp_id, c)] for c in channels}
+
+
+def read_traces(
+    path: str | os.PathLike[str], grasp_id: int, channels: Iterable[str] = CHANNELS
+) -> dict[str, np.ndarray]:
+    """The named channels of one grasp of a shard's trace file."""
+    with TraceFile(path) as traces:
+        return traces.grasp(grasp_id, channels)

@@ -1,0 +1,231 @@
+"""The report's tables of chapter 4's studies (split robustness 4.4, the window-length sweep,
+latency and operating points 4.5, the friction-ratio proxy 4.7) beside the reference's numbers."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import polars as pl
+
+from graspstab.learning.presentation import family_label, ordered_families, rows_by
+from graspstab.report import html as H
+from graspstab.report.learning_tables import note, num, pct
+
+# The reference's numbers (thesis chapter 4).
+REFERENCE_LATENCY = {  # section 4.5: median ± std [ms], throughput [windows/s] (approximate)
+    "cnn": ("0.625 ± 0.032", "≈ 1600"),
+    "lstm": ("2.407 ± 0.048", "≈ 415"),
+    "gru": ("5.634 ± 0.118", "≈ 178"),
+}
+REFERENCE_SPLITS = {  # section 4.4, 0.01 s tuned LSTM, 30 assignments x 3 seeds
+    "assignments": "30",
+    "mean ± std": "97.14 ± 2.49 %",
+    "median": "98.13 %",
+    "minimum": "above 90 % (every assignment)",
+    "fixed split": "97.90 %",
+}
+REFERENCE_PROXY = {"proxy": "96.27 %", "cnn": "98.03 %", "gru": "98.34 %", "lstm": "98.41 %"}
+REFERENCE_SWEEP_F1 = {"cnn": "84.2-86.1 %", "gru": "85.4-85.9 %", "lstm": "85.0-85.4 %"}
+
+
+def operating_points_table(points: pl.DataFrame, overview: Mapping[str, Any]) -> str:
+    """Fig. 4.7's points: validation AUPRC and latency per family and window, best and pick."""
+    choice = overview.get("choice", {})
+    pick = choice.get("pick", {}) if choice.get("defined") else {}
+    stars = {(b["family"], b["window_s"]) for b in overview.get("best_windows", [])}
+    body = []
+    for r in points.sort(["family", "window_s"]).iter_rows(named=True):
+        key = (r["family"], r["window_s"])
+        mark = " ".join(
+            m
+            for m, on in (
+                ("★ best of family", key in stars),
+                ("◎ latency-aware pick", key == (pick.get("family"), pick.get("window_s"))),
+            )
+            if on
+        )
+        body.append(
+            [
+                family_label(r["family"]),
+                f"{r['window_s'] * 1000:g}",
+                pct(r["val_auprc_mean"], r["val_auprc_std"], 3),
+                num(r["latency_ms"], r["latency_std_ms"], 3),
+                num(r["total_latency_ms"], None, 2),
+                mark or "",
+            ]
+        )
+    return H.table(
+        [
+            "model",
+            "window [ms]",
+            "validation AUPRC",
+            "forward pass [ms]",
+            "total decision latency [ms]",
+            "",
+        ],
+        body,
+        caption="Sweep operating points (section 4.5, fig. 4.7): mean ± std over seeds; "
+        "total latency = window duration + median forward pass",
+    )
+
+
+def choice_text(overview: Mapping[str, Any]) -> str:
+    """The latency-aware choice, its rule and the reference's."""
+    c = overview.get("choice", {})
+    rule = H.esc(c.get("rule", "?"))
+    ref = (
+        "The thesis: best mean validation AUPRC GRU at 0.10 s (98.762 ± 0.034 %, 106.10 ms); "
+        "latency-aware pick LSTM at 0.01 s (98.747 ± 0.022 %, 10.17 ms)."
+    )
+    if not c.get("defined"):
+        return note(
+            f"Latency-aware choice undefined ({H.esc(c.get('reason', '?'))}). Rule: {rule}. {ref}"
+        )
+
+    def cfg(p: Mapping[str, Any]) -> str:
+        auprc = pct(p.get("val_auprc_mean"), p.get("val_auprc_std"), 3)
+        total = num(p.get("total_latency_ms"), None, 2)
+        return f"{family_label(p['family'])} at {p['window_s']:g} s ({auprc}, {total} ms)"
+
+    return (
+        f"<p>Latency-aware rule: <i>{rule}</i>. Best configuration: {H.esc(cfg(c['best']))}; "
+        f"cut-off {H.esc(pct(c.get('cutoff'), None, 3))}; <b>pick: "
+        f"{H.esc(cfg(c['pick']))}</b>. {ref}</p>"
+    )
+
+
+def sweep_table(summary: pl.DataFrame) -> str:
+    """Test F1 and AUPRC per window and family (fig. 4.5 D and F)."""
+    test = summary.filter(pl.col("split") == "test")
+    rows = rows_by(test, ["family", "window_s"])
+    families = ordered_families(test["family"].to_list())
+    body = []
+    for w in sorted(test["window_s"].unique().to_list()):
+        cells = [f"{w * 1000:g}"]
+        for f in families:
+            r = rows.get((f, w), {})
+            cells += [
+                pct(r.get("f1_mean"), r.get("f1_std"), 1),
+                pct(r.get("auprc_mean"), r.get("auprc_std"), 1),
+            ]
+        body.append(cells)
+    head = [
+        "window [ms]",
+        *[h for f in families for h in (f"{family_label(f)} F1", f"{family_label(f)} AUPRC")],
+    ]
+    ref = ", ".join(f"{family_label(f)} {v}" for f, v in REFERENCE_SWEEP_F1.items())
+    return H.table(
+        head,
+        body,
+        caption=(
+            f"Test metrics across the sweep (fig. 4.5D, F), mean ± std over seeds. The thesis's "
+            f"mean test F1 ranges over its windows: {ref}."
+        ),
+    )
+
+
+def latency_table(latency: pl.DataFrame) -> str:
+    """Baseline forward-pass latency and throughput beside the reference's (fig. 4.6)."""
+    base = latency.filter(pl.col("study") == "baseline")
+    body = []
+    for f in ordered_families(base["family"].to_list()):
+        r = base.filter(pl.col("family") == f).row(0, named=True)
+        ref = REFERENCE_LATENCY.get(f, ("—", "—"))
+        body.append(
+            [
+                family_label(f),
+                f"{r['window_s']:g}",
+                num(r["median_ms"], r["std_ms"], 3),
+                ref[0],
+                num(r["throughput_per_s"], None, 0),
+                ref[1],
+            ]
+        )
+    return H.table(
+        [
+            "model",
+            "window [s]",
+            "median ± std [ms]",
+            "thesis [ms]",
+            "throughput [windows/s]",
+            "thesis [windows/s]",
+        ],
+        body,
+        caption="CPU batch-1 forward-pass latency of the baseline checkpoints (first seed; "
+        "fig. 4.6). Different machines: compare the ordering, not the absolute times.",
+    )
+
+
+def splits_tables(summary: Mapping[str, Any], family: str | None) -> str:
+    """Split-robustness statistics beside the reference's, and the hardest pairings."""
+    s = summary
+    ours = {
+        "assignments": f"{s.get('assignments', '?')} ({s.get('defined', '?')} defined)",
+        "mean ± std": pct(s.get("mean"), s.get("std")),
+        "median": pct(s.get("median")),
+        "minimum": pct(s.get("min")),
+        "fixed split": pct(s.get("fixed_split")),
+    }
+    stats = H.table(
+        ["test AUPRC across assignments", "ours", "thesis"],
+        [[k, v, REFERENCE_SPLITS[k]] for k, v in ours.items()],
+        caption=f"Split robustness (section 4.4, fig. 4.4), "
+        f"{family_label(family) if family else 'model'} of the split study",
+    )
+    hard = [
+        [
+            r["assignment"],
+            r["val_objects"],
+            r["test_objects"],
+            pct(r.get("auprc"), r.get("auprc_std")),
+            r.get("seeds"),
+        ]
+        for r in s.get("hardest", [])
+    ]
+    return stats + H.table(
+        ["assignment", "validation objects", "test objects", "test AUPRC", "seeds"],
+        hard,
+        caption="Hardest sampled assignments (lowest mean test AUPRC). The thesis's hardest "
+        "pairings repeatedly involve foam_brick, especially with lemon or sponge.",
+    )
+
+
+def proxy_table(proxy: Mapping[str, Any], summary: pl.DataFrame | None) -> str:
+    """Friction-ratio proxy vs the models' mean test AUPRC (fig. 4.10)."""
+    test = proxy.get("test", {})
+    body = [
+        [
+            "friction-ratio proxy",
+            pct(test.get("auprc")),
+            pct(test.get("auroc")),
+            REFERENCE_PROXY["proxy"],
+        ]
+    ]
+    if summary is not None:
+        rows = rows_by(summary.filter(pl.col("split") == "test"), ["family"])
+        for f in ordered_families(f for (f,) in rows):
+            r = rows[(f,)]
+            body.append(
+                [
+                    f"{family_label(f)} (mean ± std over seeds)",
+                    pct(r["auprc_mean"], r["auprc_std"]),
+                    pct(r["auroc_mean"], r["auroc_std"]),
+                    REFERENCE_PROXY.get(f, "—"),
+                ]
+            )
+    n, pos = test.get("n", 0), test.get("n_unstable", 0)
+    body.append(
+        [
+            "chance level (test unstable fraction)",
+            pct(pos / n if n else None),
+            "50.00 %",
+            "59.2 % (8632 / 14587)",
+        ]
+    )
+    return H.table(
+        ["score", "test AUPRC", "test AUROC", "thesis test AUPRC"],
+        body,
+        caption=f"Friction-ratio proxy (section 4.7) on the unseen-object test split "
+        f"({pos} unstable of {n} windows)",
+    )

@@ -1,0 +1,8 @@
+"""Snakemake wrapper: the window-length sweep's study tables (graspstab.learning.studies, 4.5)."""
+
+from graspstab.learning import studies
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+studies.aggregate_sweep(
+    list(sm.input.metrics), sm.input.latency, sm.params.out_dir, log_file=sm.log[0]
+)
