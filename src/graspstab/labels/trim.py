@@ -10,10 +10,6 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from graspstab.common.units import ms_of
-
-__all__ = ["ms_of", "trim_same_end"]  # ms_of: the trimmed datasets' names, from common.units
-
 
 def trim_same_end(
     index: pl.DataFrame, windows: np.ndarray, window_steps: int

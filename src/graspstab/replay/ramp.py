@@ -10,8 +10,6 @@ per step; it is recorded in the traces as channel ``load`` (not a model input).
 
 from __future__ import annotations
 
-from typing import Any
-
 import mujoco
 import numpy as np
 
@@ -61,12 +59,3 @@ def control_rows(
     rows[0, :, start : start + 3] = forces
     return rows
 
-
-def ramp_settings(params: dict[str, Any]) -> dict[str, Any]:
-    """The ramp slice of the replay config, checked (a typo here would silently give no load)."""
-    ramp = dict(params)
-    if ramp["directions"] not in DIRECTION_SETS:
-        raise ValueError(
-            f"replay.ramp.directions = {ramp['directions']!r}; valid: {', '.join(DIRECTION_SETS)}"
-        )
-    return ramp

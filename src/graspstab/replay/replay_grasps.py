@@ -26,7 +26,7 @@ from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
 from graspstab.common.runs import earliest_run
-from graspstab.replay.ramp import ramp_direction, ramp_magnitude, ramp_settings
+from graspstab.replay.ramp import ramp_direction, ramp_magnitude
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 from graspstab.replay.traces import trace_key
@@ -68,7 +68,7 @@ def grasp_load(
     (3.2, the reference's protocol). The direction is drawn from the grasp's own stream."""
     if params["protocol"] == "gravity":
         return None
-    ramp = ramp_settings(params["ramp"])
+    ramp = params["ramp"]
     seq = np.random.SeedSequence([int(ramp["seed"]), zlib.crc32(object_id.encode()), grasp_id])
     direction = ramp_direction(ramp["directions"], gravity_hand, np.random.default_rng(seq))
     weight = float(scene.model.body_subtreemass[scene.object_body]) * float(

@@ -12,8 +12,8 @@ import string
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from graspstab.common.units import ms_of
 from graspstab.config import shards_of
-from graspstab.labels.trim import ms_of
 
 REPORT_RULE = "report"
 
