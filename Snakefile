@@ -11,6 +11,14 @@ include: "workflow/rules/synthesis.smk"
 include: "workflow/rules/replay.smk"
 include: "workflow/rules/dataset.smk"
 include: "workflow/rules/train.smk"
+
+
+# The creep-free load-ramp benchmark beside the main run (README "Load ramp"), when enabled.
+if config["creep_free"]["enabled"]:
+
+    include: "workflow/rules/creep_free.smk"
+
+
 include: "workflow/rules/report.smk"
 
 

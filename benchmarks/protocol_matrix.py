@@ -6,11 +6,16 @@ measurement behind the choice of the quick profile's defaults (README "Replay pr
 
 A variant is a comma-separated list of ``key=value``: ``contact=reference|strict``,
 ``squeeze=<rad>`` (0 when not given, whatever the profile sets), ``require=either|both``,
-``seconds=<replay length>``. Objects run in parallel (``--jobs``); each prints one line per
-object, then a summary per variant:
+``seconds=<replay length>``, ``kp=<servo gain>``, and the load ramp (README "Load ramp"):
+``protocol=gravity|ramp`` and any ``replay.ramp`` key (``rate``, ``ceiling``, ``start_s``,
+``directions``, ``path``, ``hold_fraction``, ``slip_speed``). Objects run in parallel
+(``--jobs``); each prints one line per object, then a summary per variant:
 
     python benchmarks/protocol_matrix.py --workdir <wd> --variants contact=reference \\
-        contact=reference,squeeze=0.1 contact=strict
+        contact=reference,squeeze=0.1 contact=strict,protocol=ramp,path=hold,seconds=8
+
+Under the ramp it also counts the grasps that slid while loaded (speed >= eq. 23's v_slip after
+t0) and how long they stayed in contact after that (``slip_contact_s``, median).
 """
 
 from __future__ import annotations
@@ -26,12 +31,29 @@ import mujoco
 import numpy as np
 import polars as pl
 
+from graspstab.common.runs import earliest_run
 from graspstab.config import compose_config
 from graspstab.labels.label_windows import grasp_windows
+from graspstab.replay.replay_grasps import grasp_load
 from graspstab.replay.run import run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+RAMP_KEYS = {"rate", "ceiling", "start_s", "directions", "path", "hold_fraction", "slip_speed"}
+
+
+def slip_in_contact(traces: dict[str, np.ndarray], replay: dict, labels: dict) -> float | None:
+    """Seconds in contact after the object first slid under load (None: it never slid)."""
+    dt = replay["timestep"]
+    speed = np.linalg.norm(traces["velocity"].astype(np.float64), axis=1)
+    start = round(replay["ramp"]["start_s"] / dt)
+    slid = np.flatnonzero(speed[start:] >= labels["v_slip"])
+    if not len(slid):
+        return None
+    onset = start + int(slid[0])
+    lost = ~np.isfinite(traces["min_distance"][onset:])
+    loss = earliest_run(lost, max(1, round(labels["contact_loss_s"] / dt)), len(lost))
+    return (len(lost) if loss is None else loss) * dt
 
 
 def variant_config(spec: str) -> tuple[dict[str, Any], dict[str, Any], dict[str, str]]:
@@ -46,6 +68,12 @@ def variant_config(spec: str) -> tuple[dict[str, Any], dict[str, Any], dict[str,
         labels["settle"]["require"] = pairs["require"]
     if "seconds" in pairs:
         replay["steps"] = round(float(pairs["seconds"]) / replay["timestep"])
+    if "kp" in pairs:
+        replay["contact"]["actuator"]["kp"] = float(pairs["kp"])
+    replay["protocol"] = pairs.get("protocol", replay["protocol"])
+    for key in RAMP_KEYS & pairs.keys():
+        value = pairs[key]
+        replay["ramp"][key] = value if key in ("directions", "path") else float(value)
     splits = {o: e["split"] for o, e in cfg["objects"]["items"].items()}
     return replay, labels, splits
 
@@ -59,8 +87,9 @@ def object_counts(args: tuple[str, str, Path, int | None]) -> dict[str, Any]:
     data = mujoco.MjData(scene.model)
     dt = replay["timestep"]
     out = {"object": obj, "split": splits[obj], "grasps": 0, "held": 0, "usable": 0,
-           "rejected": 0, "stable": 0, "unstable": 0, "simulated_s": 0.0}  # fmt: skip
+           "rejected": 0, "stable": 0, "unstable": 0, "simulated_s": 0.0, "slid": 0}  # fmt: skip
     speeds: list[float] = []
+    in_contact: list[float] = []
     for table in sorted((workdir / "results/grasps" / obj).glob("shard_*.parquet")):
         grasps = pl.read_parquet(table)
         for g in (grasps if limit is None else grasps.head(limit)).iter_rows(named=True):
@@ -69,9 +98,14 @@ def object_counts(args: tuple[str, str, Path, int | None]) -> dict[str, Any]:
             place_grasp(scene, data, pos, quat, np.array([g[f"theta_{k:02d}"] for k in range(16)]),
                         np.asarray(replay["gravity"]))  # fmt: skip
             stop = round(replay["stop_after_loss_s"] / dt)
+            load = grasp_load(replay, scene, scene.model.opt.gravity.copy(), obj,
+                              int(g["grasp_id"]))  # fmt: skip
             res = run_replay(scene.model, data, scene.layout, replay["steps"],
-                             replay["chunk_steps"], stop)  # fmt: skip
+                             replay["chunk_steps"], stop, load, scene.object_body)  # fmt: skip
             tr = to_object_frame(res.traces, pos, quat)
+            if load is not None and (after := slip_in_contact(tr, replay, labels)) is not None:
+                out["slid"] += 1
+                in_contact.append(after)
             out["grasps"] += 1
             out["simulated_s"] += res.steps * dt
             out["held"] += int(res.stop_reason == "completed")
@@ -87,6 +121,7 @@ def object_counts(args: tuple[str, str, Path, int | None]) -> dict[str, Any]:
             speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
             speeds += [float(np.median(speed[s + w : s + 2 * w])) for s in starts[y == 1]]
     out["wall_s"] = time.perf_counter() - t0
+    out["slip_contact_s"] = float(np.median(in_contact)) if in_contact else float("nan")
     out["unstable_speed_q50_mm_s"] = float(np.median(speeds)) * 1e3 if speeds else float("nan")
     print(f"  [{spec}] {obj}: {out}", flush=True)
     return out

@@ -211,6 +211,10 @@ def test_load_config_with_shared_assets(ycb_dir: Path):
         ({"tune": {"space": {"common": {"dropout": {"low": "0.5", "high": "0.1"}}}}},
          ["tune.space.common.dropout"]),
         ({"only_objects": "014_lemon"}, ["only_objects", "[014_lemon]"]),
+        ({"creep_free": {"enabled": "true", "sweep_windows_s": ["0.02"]}},
+         ["creep_free.sweep_windows_s", "[0.02]"]),
+        ({"replay": {"ramp": {"path": "stop"}}}, ["replay.ramp.path"]),
+        ({"replay": {"ramp": {"hold_fraction": "1.5"}}}, ["replay.ramp.hold_fraction"]),
     ],
 )  # fmt: skip
 def test_bad_values_fail_at_load_time_naming_the_field(override, named):

@@ -519,8 +519,11 @@ def test_report_has_every_section_and_decodable_images(report_html: Path) -> Non
     order = [html.index(f'id="{i}"') for i in ("contents", "headline", "pipeline", "objects")]
     assert order == sorted(order)  # contents, headline and DAG overview come first
     images = _images(html)
-    # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree)
-    assert len(images) == 21
+    # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree),
+    # + the two speed figures of "Two protocols side by side" in the toy run (creep-free enabled)
+    side_by_side = "This run has no creep-free benchmark" not in html
+    assert side_by_side == ('id="protocols-speeds-ramp"' in html)
+    assert len(images) == 21 + 2 * side_by_side
     for data in images:
         with Image.open(io.BytesIO(data)) as img:
             img.load()

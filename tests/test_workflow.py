@@ -16,6 +16,7 @@ from tests.conftest import REPO
 from tests.toy_workflow import (
     OBJECT,
     OBJECTS,
+    TOY_CREEP_FREE,
     TOY_REPLAY,
     TOY_SYNTHESIS,
     listed_jobs,
@@ -105,6 +106,56 @@ def test_replay_traces_and_summary(run):
 
 
 @pytest.mark.workflow
+def test_creep_free_benchmark_replays_the_same_grasps_under_the_ramp(run):
+    """The creep-free benchmark (creep_free.enabled): the main run's grasps replayed under the
+    strict model with the load ramp, recorded, labelled, trained and set beside the main run."""
+    import numpy as np
+    import polars as pl
+
+    from graspstab.common.io import read_parquet_metadata
+    from graspstab.replay.traces import trace_key
+
+    workdir, _, _ = run
+    cf = workdir / "results" / "creep_free"
+    meta = read_parquet_metadata(cf / "replay" / OBJECT / "replays_0.parquet")
+    assert meta["protocol"] == "ramp" and meta["contact_model"] == "strict"
+    assert meta["squeeze_rad"] == 0.0
+    main = pl.read_parquet(workdir / "results" / "replay" / OBJECT / "replays_0.parquet")
+    table = pl.read_parquet(cf / "replay" / OBJECT / "replays_0.parquet")
+    assert table["grasp_id"].to_list() == main["grasp_id"].to_list()  # the same grasps
+    assert (table["ramp_peak_load_mg"] <= 5.0 + 1e-6).all()
+    mass = json.loads((workdir / "results" / "objects" / OBJECT / "meta.json").read_text())
+    weight = float(mass["mass"]) * 9.81
+    with np.load(cf / "replay" / OBJECT / "traces_0.npz") as traces:
+        for row in table.iter_rows(named=True):
+            load = np.linalg.norm(traces[trace_key(row["grasp_id"], "load")], axis=1)
+            t = np.arange(len(load)) * 0.0005
+            # the linear path: F(t) = m g k (t - t0), capped at the ceiling
+            np.testing.assert_allclose(load, np.clip(weight * 10.0 * (t - 0.3), 0, 5 * weight),
+                                       rtol=1e-4, atol=1e-6)  # fmt: skip
+    for name in ("baseline/index.parquet", "sweep/w10ms/index.parquet"):
+        assert (cf / "datasets" / name).is_file()
+    runs = pl.read_parquet(cf / "studies" / "baseline" / "runs.parquet")
+    assert set(runs["family"]) == {"cnn", "gru", "lstm"}
+    assert json.loads((cf / "studies" / "proxy.json").read_text())["test"]["n"] > 0
+    html = (workdir / "results" / "report.html").read_text()
+    section = html[html.index('id="protocols"') : html.index('id="provenance"')]
+    assert "load ramp (strict contact model)" in section and "gravity (reference" in section
+    assert "Learned models beat the friction-ratio proxy" in section
+    assert "no creep-free" not in section
+
+
+@pytest.mark.workflow
+def test_ramp_parameter_reruns_the_creep_free_benchmark_only(run):
+    workdir, env, config = run
+    changed = _with(config, TOY_REPLAY, TOY_REPLAY.replace("rate: 10.0", "rate: 8.0"))
+    rules = {j["rule"] for j in _dry_jobs(workdir, changed, env)}
+    assert {"replay_grasps_creep_free", "label_windows_creep_free", "train_model_creep_free",
+            "report"} <= rules  # fmt: skip
+    assert not rules & {"replay_grasps", "label_windows", "train_model", "anneal_grasps"}
+
+
+@pytest.mark.workflow
 def test_datasets_baseline_and_sweep(run):
     import numpy as np
     import polars as pl
@@ -147,8 +198,8 @@ def test_report_is_self_contained(run):
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
     # objects, hand x2, pre-grasp, gallery, histograms, replay, speeds, window + 11 learning
-    # figures + the rule graph
-    assert len(images) == 9 + 11 + 1
+    # figures + the rule graph + the two speed figures of "Two protocols side by side"
+    assert len(images) == 9 + 11 + 1 + 2
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -184,8 +235,9 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     workdir, env, config = run
     env = dict(env, GRASPSTAB_CACHE_DIR=str(workdir / ".graspstab-cache"))
     alt = tmp_path / "alt"
-    proc = _snakemake(alt, "results/report.html", *_with(config, TOY_REPLAY, ALT_REPLAY),
-                      *ALTERNATIVES, env=env)  # fmt: skip
+    alt_config = _with(_with(config, TOY_REPLAY, ALT_REPLAY), TOY_CREEP_FREE,
+                       "creep_free={enabled: false}")  # fmt: skip
+    proc = _snakemake(alt, "results/report.html", *alt_config, *ALTERNATIVES, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     log = (alt / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").read_text()
     assert log.startswith("graspstab cache: restored")
@@ -314,7 +366,7 @@ def test_adding_an_object_runs_only_its_jobs_plus_downstream(run):
     assert {j["wildcards"]["object"] for j in per_object} == {added}
     assert {j["rule"] for j in per_object} == {
         "fetch_ycb_object", "preprocess_object", "anneal_grasps", "replay_grasps",
-        "summarise_grasps"}  # fmt: skip
+        "replay_grasps_creep_free", "summarise_grasps"}  # fmt: skip
     # a validation object: the quick profile's split_shards gives it four shards
     assert sum(j["rule"] == "anneal_grasps" for j in per_object) == 4
     rules = {j["rule"] for j in jobs}

@@ -42,7 +42,7 @@ def test_snakemake_lint_is_clean(tmp_path, ycb_dir, hand_assets_dir):
     env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
     proc = subprocess.run(
         [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(tmp_path),
-         "--lint"],
+         "--lint", "--config", "creep_free={enabled: true}"],
         capture_output=True, text=True, env=env, timeout=300,
     )  # fmt: skip
     out = proc.stdout + proc.stderr

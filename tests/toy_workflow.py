@@ -20,8 +20,14 @@ FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_res
 TOY_SYNTHESIS = (
     "synthesis={shards: 2, grasps_per_shard: 4, annealing: {iterations: 1500, batch_size: 4}}"
 )
-# Replays of 1 s in chunks of 0.25 s.
-TOY_REPLAY = "replay={steps: 2000, chunk_steps: 500}"
+# Replays of 1 s in chunks of 0.25 s; the load ramp (creep-free benchmark) on the linear path from
+# 0.3 s, reaching a ceiling of 5 m g at 0.8 s (so its recorded load is F(t) to the letter).
+TOY_REPLAY = (
+    "replay={steps: 2000, chunk_steps: 500, ramp: {start_s: 0.3, rate: 10.0, ceiling: 5.0, "
+    "path: linear}}"
+)
+# The creep-free benchmark beside the main run: 1 s ramp replays, a one-window sweep.
+TOY_CREEP_FREE = "creep_free={enabled: true, seconds: 1.0, sweep_windows_s: [0.01]}"
 # Every learning study at toy size: one seed, two epochs, one tuning trial, two sweep windows.
 TOY_LEARNING = [
     "train={seeds: [42], max_epochs: 2, patience: 1}",
@@ -30,7 +36,8 @@ TOY_LEARNING = [
     "splits={count: 2, seeds: [42]}",
     "latency={repeats: 5, warmup: 1}",
 ]
-CONFIG = ["--config", OBJECTS, SPLITS, FAST, TOY_SYNTHESIS, TOY_REPLAY, *TOY_LEARNING]
+CONFIG = ["--config", OBJECTS, SPLITS, FAST, TOY_SYNTHESIS, TOY_REPLAY, TOY_CREEP_FREE,
+          *TOY_LEARNING]
 
 
 def snakemake_run(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:

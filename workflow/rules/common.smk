@@ -72,11 +72,12 @@ def grasp_outputs(name):
 # Window datasets (dataset.smk).
 
 
-def replay_outputs(kind):
-    """Every replay table (kind "replays", .parquet) or trace file (kind "traces", .npz)."""
+def replay_outputs(kind, root="results"):
+    """Every replay table (kind "replays", .parquet) or trace file (kind "traces", .npz), of the
+    main run or of the creep-free benchmark (root results/creep_free)."""
     ext = "parquet" if kind == "replays" else "npz"
     return [
-        f"results/replay/{o}/{kind}_{k}.{ext}"
+        f"{root}/replay/{o}/{kind}_{k}.{ext}"
         for o in object_ids()
         for k in range(shards_of(config, o))
     ]
@@ -101,6 +102,39 @@ def dataset_params(window_s):
         "seed": config["seed"],
         "window_s": window_s,
     }
+
+
+def replay_params(replay):
+    """What a replay depends on: the replay group, without the load ramp's settings under the
+    gravity protocol (tuning the ramp must not rerun the gravity replays)."""
+    if replay["protocol"] == "gravity":
+        return {k: v for k, v in replay.items() if k != "ramp"}
+    return replay
+
+
+# The creep-free benchmark (creep_free.smk).
+
+CREEP_FREE = "results/creep_free"
+# The benchmark's artefacts the report reads (set by creep_free.smk when it is enabled).
+CREEP_FREE_ARTEFACTS = {}
+
+
+def creep_free_replay():
+    """The creep-free benchmark's replay params: the run's replay group under the load ramp
+    (replay.ramp) with creep_free's contact model, squeeze and replay length."""
+    cf, replay = config["creep_free"], config["replay"]
+    return replay_params({
+        **replay,
+        "protocol": "ramp",
+        "contact": cf["contact"],
+        "squeeze": {**replay["squeeze"], "angle": cf["squeeze"]},
+        "steps": round(cf["seconds"] / replay["timestep"]),
+    })
+
+
+def creep_free_sweep_ms():
+    """The creep-free sweep's window lengths in whole milliseconds."""
+    return [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
 
 
 # Learning studies (train.smk).
@@ -159,20 +193,20 @@ def run_outputs(root, checkpoint=True):
     return {k: f"{root}/{v}" for k, v in files.items()}
 
 
-def baseline_runs(name, seeds=None):
+def baseline_runs(name, seeds=None, root="results"):
     return expand(
-        "results/train/baseline/{model}/seed{seed}/{name}",
+        f"{root}/train/baseline/{{model}}/seed{{seed}}/{{name}}",
         model=MODELS,
         seed=seeds or config["train"]["seeds"],
         name=name,
     )
 
 
-def sweep_runs(name, seeds=None):
+def sweep_runs(name, seeds=None, root="results", windows_ms=None):
     return expand(
-        "results/train/sweep/{model}/w{ms}ms/seed{seed}/{name}",
+        f"{root}/train/sweep/{{model}}/w{{ms}}ms/seed{{seed}}/{{name}}",
         model=MODELS,
-        ms=sweep_ms(),
+        ms=windows_ms or sweep_ms(),
         seed=seeds or config["sweep"]["seeds"],
         name=name,
     )

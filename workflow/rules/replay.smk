@@ -10,7 +10,7 @@ rule replay_grasps:
         traces="results/replay/{object}/traces_{shard}.npz",
         summary="results/replay/{object}/replays_{shard}.parquet",
     params:
-        replay=config["replay"],
+        replay=replay_params(config["replay"]),
     conda:
         CONDA_ENV
     threads: 1

@@ -9,6 +9,7 @@ from graspstab.report.write_report import write_report
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 setup_logging(sm.log[0])
 PREFIX = "benchmark_"
+CREEP_FREE = "creep_free_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -42,4 +43,9 @@ write_report(
     rulegraph=Path(sm.input.rulegraph),
     jobgraph=Path(sm.input.jobgraph),
     speeds_summary=Path(sm.input.speeds_summary),
+    creep_free={
+        name.removeprefix(CREEP_FREE): files
+        for name, files in sm.input.items()
+        if name.startswith(CREEP_FREE)
+    },
 )

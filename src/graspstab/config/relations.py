@@ -86,3 +86,10 @@ def check_relations(cfg: dict[str, Any]) -> None:
                   "sweep.windows_s): its dataset is trimmed from the sweep's reference dataset, "
                   "so add a window of at least that length to sweep.windows_s or shorten "
                   f"{field}.")  # fmt: skip
+    sweep_ms = set(by_ms)
+    extra = [w for w in cfg["creep_free"]["sweep_windows_s"] if ms_of(w) not in sweep_ms]
+    if extra and cfg["creep_free"]["enabled"]:
+        _fail(f"creep_free.sweep_windows_s holds {extra} s, not in sweep.windows_s "
+              f"({windows}): the creep-free sweep is set beside the main run's and shares its "
+              "latency table, so use windows of the main sweep or add these to sweep.windows_s.")
+    _unique(list(cfg["creep_free"]["sweep_windows_s"]), "creep_free.sweep_windows_s")

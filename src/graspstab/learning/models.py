@@ -33,8 +33,9 @@ FAMILIES = ("cnn", "gru", "lstm")
 POOLINGS = ("mean", "last")
 
 
-def _check_input(x: torch.Tensor, in_features: int) -> tuple[int, int]:
-    """Validate a ``(B, W, 5, C)`` window batch early so shape errors name the expectation."""
+def _check_input(x: torch.Tensor, in_features: int) -> None:
+    """Validate a ``(B, W, 5, C)`` window batch early so shape errors name the expectation
+    (static dimensions only: the batch stays symbolic when a model is traced or exported)."""
     if x.ndim != 4 or x.shape[2] * x.shape[3] != in_features:
         raise ValueError(
             f"expected input of shape (B, W, fingertips, channels) with fingertips * channels = "
@@ -42,7 +43,6 @@ def _check_input(x: torch.Tensor, in_features: int) -> tuple[int, int]:
         )
     if x.shape[1] < 1:
         raise ValueError("window length W must be >= 1")
-    return int(x.shape[0]), int(x.shape[1])
 
 
 class CNNClassifier(nn.Module):
@@ -83,8 +83,8 @@ class CNNClassifier(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Map ``(B, W, 5, C)`` windows to ``(B,)`` instability logits."""
-        batch, steps = _check_input(x, self.in_channels)
-        h = x.reshape(batch, steps, self.in_channels).transpose(1, 2)  # (B, 5C, W)
+        _check_input(x, self.in_channels)
+        h = x.flatten(2).transpose(1, 2)  # (B, 5C, W)
         h = self.pool(self.features(h)).squeeze(-1)
         return self.head(h).squeeze(-1)
 
@@ -133,8 +133,8 @@ class RecurrentClassifier(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Map ``(B, W, 5, C)`` windows to ``(B,)`` instability logits."""
-        batch, steps = _check_input(x, self.in_features)
-        out, _ = self.rnn(x.reshape(batch, steps, self.in_features))  # (B, W, D)
+        _check_input(x, self.in_features)
+        out, _ = self.rnn(x.flatten(2))  # (B, W, D)
         if self.pooling == "mean":
             pooled = out.mean(dim=1)
         elif self.bidirectional:

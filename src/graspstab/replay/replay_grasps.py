@@ -26,7 +26,7 @@ from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
 from graspstab.common.runs import earliest_run
-from graspstab.replay.ramp import ramp_direction, ramp_magnitude
+from graspstab.replay.ramp import RampLoad, ramp_direction, ramp_load
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 from graspstab.replay.traces import trace_key
@@ -61,10 +61,9 @@ def summarise_replay(
 
 
 def grasp_load(
-    params: dict[str, Any], scene: Any, gravity_hand: np.ndarray, object_id: str, grasp_id: int,
-    steps: int,
-) -> np.ndarray | None:  # fmt: skip
-    """The load-ramp force of one grasp (steps x 3, hand frame), or None under gravity alone
+    params: dict[str, Any], scene: Any, gravity_hand: np.ndarray, object_id: str, grasp_id: int
+) -> RampLoad | None:
+    """The load ramp of one grasp (simulation frame = hand frame), or None under gravity alone
     (3.2, the reference's protocol). The direction is drawn from the grasp's own stream."""
     if params["protocol"] == "gravity":
         return None
@@ -74,10 +73,20 @@ def grasp_load(
     weight = float(scene.model.body_subtreemass[scene.object_body]) * float(
         np.linalg.norm(gravity_hand)
     )
-    dt = float(params["timestep"])
-    magnitude = ramp_magnitude(steps, dt, float(ramp["start_s"]), float(ramp["rate"]),
-                               float(ramp["ceiling"]), weight)  # fmt: skip
-    return magnitude[:, None] * direction[None]
+    return ramp_load(ramp, direction, weight, float(params["timestep"]))
+
+
+def ramp_summary(load: RampLoad, traces: dict[str, np.ndarray], dt: float) -> dict[str, Any]:
+    """Per-grasp load-ramp columns: the largest load it carried and, under the ``hold`` path, when
+    and at what load the object first slid (NaN if it never did), loads in units of m g."""
+    applied = np.linalg.norm(traces["load"].astype(np.float64), axis=1)
+    slid = load.slip_step is not None
+    return {
+        "ramp_peak_load_mg": float(applied.max(initial=0.0)) / load.weight,
+        "ramp_slip_s": load.slip_step * dt if slid else np.nan,
+        "ramp_slip_load_mg": float(applied[load.slip_step]) / load.weight
+        if slid and load.slip_step < len(applied) else np.nan,
+    }  # fmt: skip
 
 
 def replay_grasps(
@@ -110,13 +119,15 @@ def replay_grasps(
         start = time.perf_counter()
         place_grasp(scene, data, pos, quat, joints, gravity)
         load = grasp_load(params, scene, scene.model.opt.gravity.copy(), object_id,
-                          int(g["grasp_id"]), steps)  # fmt: skip
+                          int(g["grasp_id"]))  # fmt: skip
         result = run_replay(scene.model, data, scene.layout, steps, chunk, stop_loss, load,
                             scene.object_body)  # fmt: skip
         traces = to_object_frame(result.traces, pos, quat)
         for channel, values in traces.items():
             arrays[trace_key(g["grasp_id"], channel)] = values
         summary = summarise_replay(result, traces, dt, loss_steps)
+        if load is not None:
+            summary.update(ramp_summary(load, traces, dt))
         rows.append(
             {
                 "grasp_id": int(g["grasp_id"]),

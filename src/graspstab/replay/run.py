@@ -18,7 +18,7 @@ import mujoco
 import mujoco.rollout
 import numpy as np
 
-from graspstab.replay.ramp import CONTROL_SPEC, control_rows
+from graspstab.replay.ramp import CONTROL_SPEC, RampLoad, control_rows
 from graspstab.replay.sensors import SensorLayout, features
 from graspstab.replay.traces import CHANNELS, LOAD
 
@@ -49,24 +49,25 @@ def run_replay(
     steps: int,
     chunk: int,
     stop_after_loss_steps: int,
-    load: np.ndarray | None = None,
+    load: RampLoad | None = None,
     load_body: int = -1,
 ) -> ReplayResult:
     """Roll out ``steps`` steps from ``data``'s current state with its current controls.
 
     ``data`` must be placed (positions, controls, gravity) by the caller; it ends in the last
     state. Row t of a trace is the sensor reading that step t computed, i.e. of the state before
-    integration (MuJoCo evaluates sensors inside ``mj_step``). ``load`` (steps x 3, simulation
-    frame) is an external force on body ``load_body`` during step t (the load-ramp protocol,
-    :mod:`graspstab.replay.ramp`), recorded as trace channel ``load``.
+    integration (MuJoCo evaluates sensors inside ``mj_step``). ``load`` is the load-ramp
+    protocol's external force on body ``load_body`` (:mod:`graspstab.replay.ramp`; it sets the
+    chunk lengths while it needs the object's speed), recorded as trace channel ``load``
+    (simulation frame, the force during step t).
     """
     if chunk < 1 or steps < 1:
         raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state = np.empty(mujoco.mj_stateSize(model, spec))
     control, control_spec = data.ctrl.copy()[None, None], mujoco.mjtState.mjSTATE_CTRL
-    if load is not None and (load.shape != (steps, 3) or load_body < 0):
-        raise ValueError(f"load must be ({steps}, 3) on a body, got {load.shape} on {load_body}")
+    if load is not None and load_body < 0:
+        raise ValueError(f"a load needs the body it acts on, got body {load_body}")
     channels = CHANNELS if load is None else (*CHANNELS, LOAD)
     parts: dict[str, list[np.ndarray]] = {c: [] for c in channels}
     done, reason, overflow, lost_run = 0, "completed", 0, 0
@@ -74,8 +75,10 @@ def run_replay(
         n = min(chunk, steps - done)
         mujoco.mj_getState(model, data, state, spec)
         if load is not None:
+            n = load.chunk_steps(done, n)
+            forces = load.forces(done, n)
             control_spec = CONTROL_SPEC
-            control = control_rows(model, data.ctrl, load_body, load[done : done + n])
+            control = control_rows(model, data.ctrl, load_body, forces)
         _, sensordata = mujoco.rollout.rollout(
             model,
             data,
@@ -87,7 +90,8 @@ def run_replay(
         )
         rows = features(sensordata[0], layout)
         if load is not None:
-            rows[LOAD] = load[done : done + n]
+            rows[LOAD] = forces
+            load.observe(done, np.linalg.norm(rows["velocity"], axis=1))
         finite = np.isfinite(sensordata[0]).all(axis=1)
         ok = int(np.argmin(finite)) if not finite.all() else n
         for c in channels:

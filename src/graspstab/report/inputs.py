@@ -30,6 +30,9 @@ def benchmark_wildcards(
     # trimmed datasets: the sweep's windows plus the tuning and split studies' own
     windows = sorted({*sweep, *(ms_of(config[s]["window_s"]) for s in ("tune", "splits"))})
     objects, models = list(objects), list(models)
+    creep_free_sweep = [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
+    shards_cf = shards if config["creep_free"]["enabled"] else []
+    models_cf = models if config["creep_free"]["enabled"] else []
     return {
         "fetch_ycb_object": {"object": objects},
         "preprocess_object": {"object": objects},
@@ -40,6 +43,13 @@ def benchmark_wildcards(
         "train_model": {"model": models, "seed": list(config["train"]["seeds"])},
         "tune_model": {"model": models},
         "train_sweep_model": {"model": models, "ms": sweep, "seed": list(config["sweep"]["seeds"])},
+        # the creep-free benchmark's rules (creep_free.smk): no jobs unless it is enabled
+        "replay_grasps_creep_free": shards_cf,
+        "trim_sweep_window_creep_free": {"ms": creep_free_sweep if models_cf else []},
+        "train_model_creep_free": {"model": models_cf, "seed": list(config["train"]["seeds"])},
+        "train_sweep_model_creep_free": {
+            "model": models_cf, "ms": creep_free_sweep, "seed": list(config["sweep"]["seeds"])
+        },
         "train_split_model": {
             "model": [config["splits"]["family"]],
             "k": list(range(assignments)),

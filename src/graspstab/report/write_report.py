@@ -18,6 +18,7 @@ from graspstab.learning.artefacts import StudyArtefacts
 from graspstab.learning.presentation import UNDEFINED, finite
 from graspstab.report import dag
 from graspstab.report import html as H
+from graspstab.report.creep_free import Benchmark, creep_free_section
 from graspstab.report.funnel import funnel, funnel_table
 from graspstab.report.headline import headline_section, run_scale
 from graspstab.report.learning import learning_section
@@ -38,8 +39,8 @@ SECTION_IDS = (
     "unstable-speeds", "datasets", "window",
     "dataset-counts", "learning", "tuning", "baseline-configurations", "metrics", "confusion",
     "per-object", "split-robustness", "sweep", "latency", "operating-points", "errors",
-    "threshold-transfer", "reliability", "proxy", "provenance", "stage-times", "funnel",
-    "configuration",
+    "threshold-transfer", "reliability", "proxy", "protocols", "provenance", "stage-times",
+    "funnel", "configuration",
 )  # fmt: skip
 
 
@@ -425,6 +426,39 @@ def _provenance_parts(
     ]
 
 
+def _protocols_parts(
+    config: dict[str, Any], creep_free: Mapping[str, Any] | None, dataset: Path | None,
+    speeds: Path | None, replays: list[Path] | None, learning: StudyArtefacts | None,
+    figures: dict[str, Path],
+) -> list[str]:  # fmt: skip
+    """The two protocols side by side, when the run has the creep-free benchmark; else a note on
+    how to turn it on."""
+    if not creep_free or dataset is None or speeds is None or learning is None:
+        return [
+            H.heading(2, "protocols", "Two protocols side by side: gravity and the load ramp"),
+            '<p class="note">This run has no creep-free benchmark (creep_free.enabled is false). '
+            "<code>--config 'creep_free={enabled: true}'</code> replays the same grasps under the "
+            'strict contact model with a rising load and sets the two side by side here (README '
+            '"Load ramp").</p>',
+        ]
+    main = Benchmark(
+        name=f"gravity ({config['replay']['contact']['name']} contact model)",
+        dataset=dataset, speeds=speeds, replays=replays or [], studies=learning,
+        speeds_figure=figures.get("unstable_speeds"),
+        sweep_windows_s=[float(w) for w in config["sweep"]["windows_s"]],
+    )  # fmt: skip
+    cf = config["creep_free"]
+    ramp = Benchmark(
+        name=f"load ramp ({cf['contact']['name']} contact model)",
+        dataset=Path(creep_free["dataset"]), speeds=Path(creep_free["speeds"]),
+        replays=[Path(p) for p in creep_free["replays"]],
+        studies=StudyArtefacts.from_inputs(creep_free, prefix="study_"),
+        speeds_figure=Path(creep_free["speeds_figure"]),
+        sweep_windows_s=[float(w) for w in cf["sweep_windows_s"]],
+    )  # fmt: skip
+    return [creep_free_section(main, ramp, config["replay"]["ramp"])]
+
+
 def write_report(
     out_html: Path,
     config: dict[str, Any],
@@ -443,12 +477,15 @@ def write_report(
     rulegraph: Path | None = None,
     jobgraph: Path | None = None,
     speeds_summary: Path | None = None,
+    creep_free: Mapping[str, Any] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
     ``learning_figures``, when given). ``benchmark_files`` are the
     preprocessing benchmarks, ``rule_benchmarks`` every rule's (rule -> files), ``rulegraph``
-    and ``jobgraph`` Snakemake's ``--rulegraph`` and ``--dag`` dot files."""
+    and ``jobgraph`` Snakemake's ``--rulegraph`` and ``--dag`` dot files. ``creep_free``: the
+    creep-free benchmark's artefacts (rule report's ``creep_free_*`` inputs, prefix stripped),
+    set beside the main run's in the section "Two protocols side by side"."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -491,6 +528,8 @@ def write_report(
         *(_contact_parts(speeds_summary, figures, config["replay"]) if replay_summaries else []),
         *_dataset_parts(dataset_summary, sweep_summaries, figures),
         *([learning_section(learning, learning_figures or {}, config)] if learning else []),
+        *_protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_summaries,
+                          learning, figures),  # fmt: skip
         *_provenance_parts(
             config,
             rule_benchmarks or {"preprocess_object": benchmark_files},

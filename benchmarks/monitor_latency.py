@@ -1,0 +1,171 @@
+"""The streaming monitor's cost per frame at batch 1 on one thread, per family and format.
+
+A controller pushes one force frame every 0.5 ms (the replay's 2 kHz); the monitor keeps the last
+W frames and scores the window every ``--stride`` frames. For each model and format (PyTorch
+eager, TorchScript, ONNX Runtime) this feeds a random raw trace through
+``graspstab.monitor.stream.StreamingMonitor`` after the buffer has filled and a warm-up, times
+every ``push``, and prints the mean, median and 99th percentile per frame against the frame
+period. Issue 16's targets: every family below 0.5 ms (real time), the latency-aware pick at or
+below 0.1 ms in its best format.
+
+Models: trained checkpoints (``--checkpoint PATH``, repeatable; their own window, normalisation
+and threshold), or, without any, random weights in the reference architectures: each family's
+baseline (``config/model/<family>.yaml``) at the baseline window (``labels.window_s``, 0.2 s =
+400 frames) and the latency-aware pick (the sweep's configuration of ``--pick-family``, LSTM by
+default, at ``--pick-window-s``, 0.01 s = 20 frames). Weights do not change the cost.
+
+    python benchmarks/monitor_latency.py [--frames 2000] [--warmup 200] [--stride 1]
+        [--formats eager torchscript onnx] [--checkpoint results/train/.../model.pt ...]
+
+Torch runs one intra-op thread (``torch.set_num_threads(1)``), ONNX Runtime a session with
+``intra_op_num_threads=1``; the exports go to a temporary directory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from graspstab.common.provenance import cpu_model, installed_versions
+from graspstab.config import compose_config
+from graspstab.labels.windows import step_counts
+from graspstab.learning.models import build_model, count_parameters
+from graspstab.monitor.checkpoint import read_trained
+from graspstab.monitor.constants import MonitorConstants
+from graspstab.monitor.export import export_onnx, export_torchscript, load_onnx, load_torchscript
+from graspstab.monitor.scoring import TorchScorer, WindowScorer
+from graspstab.monitor.stream import StreamingMonitor
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
+FORMATS = ("eager", "torchscript", "onnx")
+FRAME_PERIOD_MS = 0.5  # 2 kHz
+PICK_TARGET_MS = 0.1
+
+
+@dataclass
+class Case:
+    """One model to time: its label, the model and its constants."""
+
+    label: str
+    model: nn.Module
+    constants: MonitorConstants
+    pick: bool = False
+
+
+def reference_cases(pick_family: str, pick_window_s: float, seed: int) -> list[Case]:
+    """Random-weight baselines at the baseline window and the latency-aware pick."""
+    cfg = compose_config(CONFIG_DIR)
+    dt, labels = float(cfg["replay"]["timestep"]), cfg["labels"]
+    steps = {w: step_counts(w, labels["offset_s"], labels["horizon_s"], dt)[0]
+             for w in (labels["window_s"], pick_window_s)}  # fmt: skip
+    rng = np.random.default_rng(seed)
+    mean = np.stack([rng.uniform(1.0, 4.0, 5), rng.uniform(0.1, 1.0, 5)], axis=-1)
+    std = np.stack([rng.uniform(0.2, 1.0, 5), rng.uniform(0.05, 0.3, 5)], axis=-1)
+    specs = [(f"{f} baseline", cfg["model"][f], labels["window_s"], False) for f in cfg["model"]]
+    specs.append((f"{pick_family} pick", cfg["sweep"]["models"][pick_family], pick_window_s, True))
+    cases = []
+    for label, spec, window_s, pick in specs:
+        torch.manual_seed(seed)
+        model = build_model(spec).eval()
+        c = MonitorConstants(mean, std, 0.5, steps[window_s], family=spec["family"], model=spec)
+        cases.append(Case(f"{label} {window_s:g} s", model, c, pick))
+    return cases
+
+
+def checkpoint_cases(paths: list[str]) -> list[Case]:
+    """Trained checkpoints with their own constants."""
+    cases = []
+    for path in paths:
+        model, c = read_trained(path)
+        cases.append(Case(f"{c.family} W={c.window_steps} ({path})", model, c))
+    return cases
+
+
+def scorer_for(case: Case, fmt: str, stem: Path) -> WindowScorer:
+    """The case's model in one format (exported to ``stem`` + suffix where needed)."""
+    if fmt == "eager":
+        return TorchScorer(case.model, case.constants)
+    if fmt == "torchscript":
+        export_torchscript(case.model, case.constants, stem.with_suffix(".ts"))
+        return load_torchscript(stem.with_suffix(".ts"))
+    export_onnx(case.model, case.constants, stem.with_suffix(".onnx"))
+    return load_onnx(stem.with_suffix(".onnx"), threads=1)
+
+
+def time_monitor(
+    monitor: StreamingMonitor, frames: int, warmup: int, seed: int
+) -> dict[str, float]:
+    """Per-frame push times [ms] over ``frames`` frames after the buffer filled and a warm-up."""
+    c = monitor.constants
+    rng = np.random.default_rng(seed)
+    total = c.window_steps + warmup + frames
+    trace = (c.mean + c.std * rng.normal(size=(total, 5, 2))).astype(np.float32)
+    push: Callable[[Any], Any] = monitor.push
+    monitor.reset()
+    for frame in trace[: total - frames]:
+        push(frame)
+    times = np.empty(frames)
+    clock = time.perf_counter
+    for i, frame in enumerate(trace[total - frames :]):
+        t0 = clock()
+        push(frame)
+        times[i] = clock() - t0
+    ms = times * 1e3
+    return {"mean": float(ms.mean()), "median": float(np.median(ms)),
+            "p99": float(np.quantile(ms, 0.99))}  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--checkpoint", action="append", default=[], help="trained model.pt")
+    parser.add_argument("--formats", nargs="+", choices=FORMATS, default=list(FORMATS))
+    parser.add_argument("--frames", type=int, default=2000, help="timed frames per case")
+    parser.add_argument("--warmup", type=int, default=200, help="untimed scored frames first")
+    parser.add_argument("--stride", type=int, default=1)
+    parser.add_argument("--pick-family", default="lstm")
+    parser.add_argument("--pick-window-s", type=float, default=0.01)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    torch.set_num_threads(1)
+    cases = (checkpoint_cases(args.checkpoint) if args.checkpoint
+             else reference_cases(args.pick_family, args.pick_window_s, args.seed))  # fmt: skip
+    versions = installed_versions(["torch", "onnxruntime"])
+    print(f"CPU {cpu_model()}; torch {versions['torch']} ({torch.get_num_threads()} thread), "
+          f"onnxruntime {versions['onnxruntime']} (1 intra-op thread); stride {args.stride}, "
+          f"{args.frames} timed frames after {args.warmup} warm-up; frame period "
+          f"{FRAME_PERIOD_MS} ms (2 kHz)")  # fmt: skip
+    header = (f"{'model':<26} {'W':>4} {'params':>8} {'format':<12} {'mean ms':>8} "
+              f"{'median':>8} {'p99':>8} {'of 0.5 ms':>9}  verdict")  # fmt: skip
+    print(header)
+    print("-" * len(header))
+    with tempfile.TemporaryDirectory() as tmpdir:
+        for k, case in enumerate(cases):
+            best = None
+            for fmt in args.formats:
+                scorer = scorer_for(case, fmt, Path(tmpdir) / f"case{k}")
+                monitor = StreamingMonitor.from_scorer(scorer, stride=args.stride)
+                t = time_monitor(monitor, args.frames, args.warmup, args.seed)
+                verdict = "real time" if t["mean"] < FRAME_PERIOD_MS else "TOO SLOW"
+                print(f"{case.label:<26} {case.constants.window_steps:>4} "
+                      f"{count_parameters(case.model):>8} {fmt:<12} {t['mean']:>8.4f} "
+                      f"{t['median']:>8.4f} {t['p99']:>8.4f} "
+                      f"{t['mean'] / FRAME_PERIOD_MS:>8.0%}  {verdict}")  # fmt: skip
+                best = min(best or (t["mean"], fmt), (t["mean"], fmt))
+            if case.pick and best is not None:
+                ok = "meets" if best[0] <= PICK_TARGET_MS else "misses"
+                print(f"  -> pick: best {best[1]} {best[0]:.4f} ms/frame, {ok} the "
+                      f"{PICK_TARGET_MS} ms target")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

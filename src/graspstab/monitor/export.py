@@ -1,0 +1,254 @@
+"""Export a trained model to TorchScript and ONNX, constants inside and beside, and load it back.
+
+The exported graph takes **raw** forces, ``forces (B, W, 5, 2)`` float32 in newtons (fingertips
+in eq. 19's order, channels normal and shear), normalises them inside with the training mean and
+std, and returns ``prob (B,)`` and ``logit (B,)``; the batch axis is dynamic, ``W`` is the
+model's window. So a consumer needs nothing but the file: the constants (mean, std, threshold,
+window steps, family, spec) are embedded (TorchScript extra file ``graspstab_monitor.json``, ONNX
+``metadata_props["graspstab_monitor"]``) and, when asked, written beside it as a JSON sidecar.
+The loaders return :mod:`~graspstab.monitor.scoring` scorers, which take their probability from
+the logit with the learning stage's float64 sigmoid, like the eager monitor.
+
+ONNX uses the torch.export-based exporter (``dynamo=True``, needs onnxscript) at opset
+:data:`ONNX_OPSET`; all three families (CNN, GRU, LSTM; uni- or bidirectional, mean or last
+pooling) export and match eager PyTorch (tests). The learning models' own ``forward`` is
+exported: it keeps the batch symbolic (no Python int of a dynamic size), so a trace or export works
+at any batch size.
+
+TorchScript (``torch.jit.trace``, then ``torch.jit.freeze``) is deprecated upstream from torch
+2.13 on, though it still works there; it is kept because it runs in-process without ONNX Runtime.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import tempfile
+import warnings
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from graspstab.common.io import atomic_path, reading
+from graspstab.common.provenance import code_version, installed_versions
+from graspstab.learning.models import CNNClassifier, RecurrentClassifier
+from graspstab.learning.train import sigmoid
+from graspstab.monitor.constants import (
+    FRAME_SHAPE,
+    MonitorConstants,
+    MonitorError,
+    write_constants,
+)
+from graspstab.monitor.scoring import check_windows
+
+ONNX_OPSET = 18  # the torch.export-based exporter's lowest; onnxruntime 1.32 runs up to 23
+INPUT = "forces"
+OUTPUTS = ("prob", "logit")
+META_KEY = "graspstab_monitor"  # ONNX metadata_props key and TorchScript extra file stem
+TS_EXTRA = f"{META_KEY}.json"
+_EXAMPLE_BATCH = 2  # not 1: torch.export specialises a size-1 dimension to a constant
+# logs one warning per torchvision operator it cannot register (torchvision is not a dependency)
+_REGISTRATION_LOG = "torch.onnx._internal.exporter._registration"
+
+
+class ExportError(RuntimeError):
+    """A model that cannot be exported (unknown architecture, an exporter failure)."""
+
+
+class RawWindowModel(nn.Module):
+    """The exported graph: raw windows -> (probability, logit), normalisation inside."""
+
+    def __init__(self, model: nn.Module, constants: MonitorConstants) -> None:
+        super().__init__()
+        if not isinstance(model, CNNClassifier | RecurrentClassifier):
+            raise ExportError(
+                f"cannot export a {type(model).__name__}: only the learning stage's "
+                "CNNClassifier and RecurrentClassifier (families cnn, gru, lstm) are supported"
+            )
+        self.model = model.eval()
+        self.register_buffer("mean", torch.as_tensor(constants.mean, dtype=torch.float32))
+        self.register_buffer("std", torch.as_tensor(constants.std, dtype=torch.float32))
+
+    def forward(self, forces: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``forces (B, W, 5, 2)`` raw [N] -> ``prob (B,)``, ``logit (B,)``."""
+        logit = self.model((forces - self.mean) / self.std)
+        return torch.sigmoid(logit), logit
+
+
+@contextlib.contextmanager
+def _quiet(name: str) -> Iterator[None]:
+    """Raise one logger to ERROR for the duration of a block."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+@contextlib.contextmanager
+def _jit_quiet() -> Iterator[None]:
+    """Silence the tracer's warnings and torch 2.13's deprecation notices of ``torch.jit``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        warnings.filterwarnings("ignore", r".*torch\.jit\.", DeprecationWarning)
+        yield
+
+
+def _example(constants: MonitorConstants) -> torch.Tensor:
+    """A raw example batch around the training mean (tracing follows no data-dependent path)."""
+    g = torch.Generator().manual_seed(0)
+    noise = torch.randn(_EXAMPLE_BATCH, constants.window_steps, *FRAME_SHAPE, generator=g)
+    mean = torch.as_tensor(constants.mean, dtype=torch.float32)
+    return mean + noise * torch.as_tensor(constants.std, dtype=torch.float32)
+
+
+def _extra(fmt: str, **more: Any) -> dict[str, Any]:
+    """What the embedded record and the sidecar hold beside the constants: the file format and
+    the exporting code's provenance."""
+    packages = installed_versions(["torch", "onnx", "onnxruntime", "onnxscript"])
+    return {
+        "file_format": fmt,
+        **more,
+        "provenance": {"stage": "monitor", "code_version": code_version("monitor", "learning"),
+                       "packages": packages},
+    }  # fmt: skip
+
+
+def export_torchscript(
+    model: nn.Module,
+    constants: MonitorConstants,
+    path: str | Path,
+    sidecar: str | Path | None = None,
+) -> None:
+    """Trace ``model`` (with its normalisation) to a frozen TorchScript file at ``path``; write
+    the constants sidecar too when ``sidecar`` is given."""
+    wrapped = RawWindowModel(model, constants).eval()
+    extra = _extra("torchscript")
+    record = json.dumps({**extra, **constants.to_dict()}, sort_keys=True)
+    with torch.no_grad(), _jit_quiet(), atomic_path(path) as tmp:
+        traced = torch.jit.freeze(torch.jit.trace(wrapped, (_example(constants),)))
+        torch.jit.save(traced, str(tmp), _extra_files={TS_EXTRA: record})
+    if sidecar is not None:
+        write_constants(sidecar, constants, extra)
+
+
+def export_onnx(
+    model: nn.Module,
+    constants: MonitorConstants,
+    path: str | Path,
+    sidecar: str | Path | None = None,
+    *,
+    opset: int = ONNX_OPSET,
+) -> None:
+    """Export ``model`` (with its normalisation) to one self-contained ONNX file at ``path``,
+    dynamic batch axis, constants in its ``metadata_props``; the sidecar too when given."""
+    import onnx
+
+    wrapped = RawWindowModel(model, constants).eval()
+    family = constants.family or type(model).__name__
+    batch = torch.export.Dim("batch", min=1)
+    with tempfile.TemporaryDirectory() as tmpdir:
+        raw = Path(tmpdir) / "model.onnx"
+        try:
+            with warnings.catch_warnings(), _quiet(_REGISTRATION_LOG):
+                warnings.simplefilter("ignore")
+                torch.onnx.export(
+                    wrapped, (_example(constants),), raw, dynamo=True, opset_version=opset,
+                    input_names=[INPUT], output_names=list(OUTPUTS), external_data=False,
+                    dynamic_shapes={"forces": {0: batch}}, verbose=False,
+                )  # fmt: skip
+        except Exception as exc:  # noqa: BLE001 - any exporter failure, one clear message
+            raise ExportError(
+                f"the {family} model could not be exported to ONNX (opset {opset}, torch "
+                f"{torch.__version__}): {type(exc).__name__}: {exc}"
+            ) from exc
+        proto = onnx.load(str(raw))
+    extra = _extra("onnx", opset=opset)
+    record = json.dumps({**extra, **constants.to_dict()}, sort_keys=True)
+    onnx.helper.set_model_props(proto, {META_KEY: record})
+    onnx.checker.check_model(proto)
+    with atomic_path(path) as tmp:
+        onnx.save(proto, str(tmp))
+    if sidecar is not None:
+        write_constants(sidecar, constants, extra)
+
+
+def _constants_from(text: str | bytes, source: str) -> MonitorConstants:
+    """Constants from an embedded JSON record."""
+    if not text:
+        raise MonitorError(f"{source} carries no {META_KEY} record: export it with monitor.export")
+    data: Mapping[str, Any] = json.loads(text)
+    return MonitorConstants.from_dict(data, source=source)
+
+
+class TorchScriptScorer:
+    """A loaded TorchScript export as a scorer (raw windows in)."""
+
+    def __init__(self, module: torch.jit.ScriptModule, constants: MonitorConstants) -> None:
+        self.module = module
+        self.constants = constants
+
+    def score_one(self, window: np.ndarray) -> float:
+        """Probability of one raw window ``(W, 5, 2)``."""
+        with torch.inference_mode():
+            _, logit = self.module(torch.from_numpy(window).unsqueeze(0))
+        return float(sigmoid(np.float64(logit.item())))
+
+    def __call__(self, windows: np.ndarray) -> np.ndarray:
+        """Probabilities of raw windows ``(B, W, 5, 2)``."""
+        x = torch.from_numpy(check_windows(windows, self.constants.window_steps))
+        with torch.inference_mode():
+            _, logits = self.module(x)
+        return sigmoid(logits.double().numpy())
+
+
+class OnnxScorer:
+    """A loaded ONNX export on ONNX Runtime (CPU) as a scorer (raw windows in)."""
+
+    def __init__(self, session: Any, constants: MonitorConstants) -> None:
+        self.session = session
+        self.constants = constants
+        self._feed: dict[str, np.ndarray] = {}
+
+    def score_one(self, window: np.ndarray) -> float:
+        """Probability of one raw window ``(W, 5, 2)``."""
+        self._feed[INPUT] = window[None]
+        (logit,) = self.session.run(["logit"], self._feed)
+        return float(sigmoid(np.float64(logit[0])))
+
+    def __call__(self, windows: np.ndarray) -> np.ndarray:
+        """Probabilities of raw windows ``(B, W, 5, 2)``."""
+        x = check_windows(windows, self.constants.window_steps)
+        (logits,) = self.session.run(["logit"], {INPUT: x})
+        return sigmoid(logits.astype(np.float64))
+
+
+def load_torchscript(path: str | Path) -> TorchScriptScorer:
+    """Load a file written by :func:`export_torchscript` (CPU)."""
+    extra = {TS_EXTRA: ""}
+    with reading(path), _jit_quiet():
+        module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
+    return TorchScriptScorer(module.eval(), _constants_from(extra[TS_EXTRA], str(path)))
+
+
+def load_onnx(path: str | Path, *, threads: int = 1) -> OnnxScorer:
+    """Load a file written by :func:`export_onnx` into an ONNX Runtime CPU session of
+    ``threads`` intra-op threads (one inter-op thread, sequential execution)."""
+    import onnxruntime as ort
+
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = int(threads)
+    options.inter_op_num_threads = 1
+    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    with reading(path):
+        session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+    meta = session.get_modelmeta().custom_metadata_map.get(META_KEY, "")
+    return OnnxScorer(session, _constants_from(meta, str(path)))

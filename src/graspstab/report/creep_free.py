@@ -1,0 +1,216 @@
+"""The report's side-by-side section: the reference's gravity replay and the creep-free load ramp
+on the same grasps (README "Load ramp"), and which of the reference's conclusions hold under each,
+decided from the measured numbers by the rules written out in :data:`CONCLUSIONS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from graspstab.common.io import read_json, read_parquet
+from graspstab.learning.artefacts import StudyArtefacts
+from graspstab.learning.presentation import UNDEFINED, family_label, finite
+from graspstab.report import html as H
+from graspstab.report.headline import Figure, baseline_figure, proxy_figure, sweep_figure
+
+FAMILIES = ("cnn", "gru", "lstm")
+SPLITS = ("train", "val", "test")
+#: "Short windows suffice" (4.5) holds when the shortest sweep window's best validation AUPRC is
+#: within this many points of the best over all windows.
+SHORT_WINDOW_POINTS = 1.0
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """One protocol's artefacts: its dataset and speed summaries, replay tables and studies."""
+
+    name: str
+    dataset: Path  # datasets/baseline/summary.json
+    speeds: Path  # datasets/speeds.json
+    replays: Sequence[Path]
+    studies: StudyArtefacts
+    speeds_figure: Path | None = None
+    sweep_windows_s: Sequence[float] = field(default_factory=tuple)
+
+
+def _pct(x: float | None, digits: int = 1) -> str:
+    return f"{100 * x:.{digits}f} %" if finite(x) else UNDEFINED
+
+
+def _mm(x: float | None) -> str:
+    return f"{1e3 * x:.3g}" if finite(x) else UNDEFINED
+
+
+def class_mix(b: Benchmark) -> dict[str, dict[str, Any]]:
+    """Per split: windows, unstable share, and how many objects contribute windows."""
+    d = read_json(b.dataset)
+    out = {}
+    for s in SPLITS:
+        c = d["splits"][s]
+        n = c["stable"] + c["unstable"]
+        objects = sum(
+            1 for o in d["objects"].values() if o[s]["stable"] + o[s]["unstable"] > 0
+        )
+        out[s] = {"n": n, "unstable": c["unstable"], "share": c["unstable"] / n if n else None,
+                  "objects": objects}  # fmt: skip
+    return out
+
+
+def replay_outcomes(b: Benchmark) -> dict[str, Any]:
+    """How the replays ended: held to the end, contact lost, and (under the ramp) slid under
+    load with the median time from the slip to the end of contact."""
+    t = pl.concat([read_parquet(p) for p in b.replays], how="diagonal_relaxed")
+    out = {"grasps": t.height, "held": int(t["held_at_end"].sum()),
+           "lost": int((t["stop_reason"] == "contact_lost").sum()),
+           "diverged": int(t["diverged"].sum())}  # fmt: skip
+    if "ramp_slip_s" in t.columns:
+        slid = t.filter(pl.col("ramp_slip_s").is_not_nan())
+        out["slid"] = slid.height
+        lost = slid.filter(pl.col("contact_loss_s").is_not_nan())
+        out["slip_to_loss_s"] = (
+            float((lost["contact_loss_s"] - lost["ramp_slip_s"]).median()) if lost.height else None
+        )
+        out["peak_load_mg"] = float(t["ramp_peak_load_mg"].median())
+    return out
+
+
+def _best(figures: Mapping[str, Figure]) -> tuple[str | None, float | None]:
+    defined = {k: float(f.mean) for k, f in figures.items() if finite(f.mean)}
+    if not defined:
+        return None, None
+    k = max(defined, key=defined.get)
+    return k, defined[k]
+
+
+def conclusions(b: Benchmark) -> list[tuple[str, str, str]]:
+    """(conclusion, verdict, evidence) for the reference's three claims under one protocol."""
+    return judge(
+        {f: baseline_figure(b.studies, f, "test", "auprc") for f in FAMILIES},
+        proxy_figure(b.studies),
+        {w: {f: sweep_figure(b.studies, f, w) for f in FAMILIES} for w in b.sweep_windows_s},
+    )
+
+
+def judge(
+    test: Mapping[str, Figure], proxy: Figure, sweep: Mapping[float, Mapping[str, Figure]]
+) -> list[tuple[str, str, str]]:
+    """The verdicts from the figures: each family's test AUPRC at the baseline window, the
+    proxy's, and each sweep window's validation AUPRC per family."""
+    rows = []
+    # 1. learned models beat the proxy (4.7): every family's mean test AUPRC above the proxy's
+    if finite(proxy.mean) and all(finite(f.mean) for f in test.values()):
+        above = [f for f, x in test.items() if x.mean > proxy.mean]
+        verdict = "holds" if len(above) == len(FAMILIES) else (
+            "partly" if above else "does not hold")  # fmt: skip
+        evidence = (f"proxy {_pct(proxy.mean, 2)}; " + ", ".join(
+            f"{family_label(f)} {_pct(x.mean, 2)}" for f, x in test.items()))  # fmt: skip
+    else:
+        verdict, evidence = UNDEFINED, "a test AUPRC is undefined"
+    rows.append(("Learned models beat the friction-ratio proxy (4.7)", verdict, evidence))
+    # 2. short windows suffice (4.5): the shortest window within SHORT_WINDOW_POINTS of the best
+    windows = sorted(sweep)
+    by_window = {w: _best(sweep[w])[1] for w in windows}
+    defined = {w: v for w, v in by_window.items() if finite(v)}
+    if windows and windows[0] in defined:
+        best_w = max(defined, key=defined.get)
+        gap = 100 * (defined[best_w] - defined[windows[0]])
+        verdict = "holds" if gap <= SHORT_WINDOW_POINTS else "does not hold"
+        evidence = (f"best validation AUPRC at {windows[0]:g} s {_pct(defined[windows[0]], 2)}, "
+                    f"best over windows {_pct(defined[best_w], 2)} at {best_w:g} s "
+                    f"({gap:.2f} points; threshold {SHORT_WINDOW_POINTS:g})")  # fmt: skip
+    else:
+        verdict, evidence = UNDEFINED, "the shortest sweep window has no defined AUPRC"
+    rows.append(("Short windows suffice (4.5)", verdict, evidence))
+    # 3. the GRU ranks best (4.3): the highest mean test AUPRC at the baseline window
+    top, _ = _best(test)
+    if top is None:
+        rows.append(("The GRU ranks best (4.3)", UNDEFINED, "no family has a defined test AUPRC"))
+    else:
+        gru, best = test["gru"], test[top]
+        verdict = "holds" if top == "gru" else "does not hold"
+        within = (
+            " (within one std of the best)"
+            if top != "gru" and finite(gru.mean) and finite(best.std)
+            and best.mean - gru.mean <= best.std else ""
+        )  # fmt: skip
+        evidence = (f"best: {family_label(top)} {best.text()}; GRU {gru.text()}{within}")
+        rows.append(("The GRU ranks best (4.3)", verdict, evidence))
+    return rows
+
+
+def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[str, Any]) -> str:
+    """The section "Two protocols side by side" (anchor ``protocols``)."""
+    names = [main.name, ramp.name]
+    mix = [class_mix(b) for b in (main, ramp)]
+    head = ["", *names]
+    rows = []
+    for s in SPLITS:
+        rows.append([f"{s}: windows (unstable share)",
+                     *[f"{m[s]['n']} ({_pct(m[s]['share'])})" for m in mix]])  # fmt: skip
+        rows.append([f"{s}: objects with windows", *[m[s]["objects"] for m in mix]])
+    outcomes = [replay_outcomes(b) for b in (main, ramp)]
+    rows += [
+        ["replays", *[o["grasps"] for o in outcomes]],
+        ["held to the end", *[o["held"] for o in outcomes]],
+        ["contact lost", *[o["lost"] for o in outcomes]],
+        ["slid under the load while in contact", "—", outcomes[1].get("slid", UNDEFINED)],
+        ["median slip to contact loss [s]", "—",
+         f"{outcomes[1]['slip_to_loss_s']:.2f}" if finite(outcomes[1].get("slip_to_loss_s"))
+         else UNDEFINED],
+    ]  # fmt: skip
+    speeds = [read_json(b.speeds) for b in (main, ramp)]
+    rows += [
+        ["creep of a held box [mm/s]", *[_mm(s["box_creep"]["speed"]) for s in speeds]],
+        ["creep of grasps held at the end, median [mm/s]",
+         *[_mm(s["held_creep"]["q50"]) for s in speeds]],
+        ["unstable windows' target speed, median [mm/s]",
+         *[_mm(s["target_speed"]["unstable"]["q50"]) for s in speeds]],
+    ]  # fmt: skip
+    for f in FAMILIES:
+        rows.append([f"{family_label(f)} test AUPRC", *[
+            baseline_figure(b.studies, f, "test", "auprc").text() for b in (main, ramp)]])
+    rows.append(["friction-ratio proxy test AUPRC",
+                 *[proxy_figure(b.studies).text() for b in (main, ramp)]])  # fmt: skip
+    r = ramp_config
+    parts = [
+        H.heading(2, "protocols", "Two protocols side by side: gravity and the load ramp"),
+        f'<p>The same grasps replayed twice: under {H.esc(main.name)} (the main run) and under '
+        f"{H.esc(ramp.name)}: after {r['start_s']:g} s the object also carries a force rising "
+        f"at {r['rate']:g} m g per second up to {r['ceiling']:g} m g along "
+        f"{H.esc(r['directions'])} (path {H.esc(r['path'])}"
+        + (f", held at {r['hold_fraction']:g} of the load at which the object first reaches "
+           f"{r['slip_speed'] * 1e3:g} mm/s" if r["path"] == "hold" else "")
+        + "). Labels, models, training, thresholds and the proxy are the same; under the strict "
+        "contact model a held object does not creep, so an unstable label means real slip.</p>",
+        H.table(head, rows, caption=(
+            "Class mix, replay outcomes, creep and headline metrics (mean ± std over seeds) of "
+            "the two protocols")),
+    ]  # fmt: skip
+    common = sorted(set(main.sweep_windows_s) & set(ramp.sweep_windows_s))
+    sweep_rows = [
+        [f"{w:g}", family_label(f),
+         *[sweep_figure(b.studies, f, w).text() for b in (main, ramp)]]
+        for w in common for f in FAMILIES
+    ]  # fmt: skip
+    parts.append(H.table(["window [s]", "family", *names], sweep_rows,
+                         caption="Window sweep: validation AUPRC (4.5) under each protocol"))
+    verdicts = [conclusions(b) for b in (main, ramp)]
+    parts.append(H.table(
+        ["conclusion of the reference", *[f"{n}: verdict" for n in names],
+         *[f"{n}: evidence" for n in names]],
+        [[c[0][0], c[0][1], c[1][1], c[0][2], c[1][2]] for c in zip(*verdicts, strict=True)],
+        cls="text", caption=(
+            "Which of the reference's conclusions hold under each protocol, decided from the "
+            "numbers above: the proxy rule needs every family above the proxy; 'short windows "
+            f"suffice' allows {SHORT_WINDOW_POINTS:g} point of validation AUPRC"),
+    ))  # fmt: skip
+    for b, anchor in ((main, "protocols-speeds-main"), (ramp, "protocols-speeds-ramp")):
+        if b.speeds_figure is not None:
+            parts.append(H.image(b.speeds_figure, f"speeds behind the labels, {b.name}",
+                                 f"Speeds behind the labels under {b.name}.", anchor))  # fmt: skip
+    return "\n".join(parts)
