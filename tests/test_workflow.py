@@ -124,8 +124,8 @@ def test_creep_free_benchmark_replays_the_same_grasps_under_the_ramp(run):
     table = pl.read_parquet(cf / "replay" / OBJECT / "replays_0.parquet")
     assert table["grasp_id"].to_list() == main["grasp_id"].to_list()  # the same grasps
     assert (table["ramp_peak_load_mg"] <= 5.0 + 1e-6).all()
-    mass = json.loads((workdir / "results" / "objects" / OBJECT / "meta.json").read_text())
-    weight = float(mass["mass"]) * 9.81
+    meta_object = json.loads((workdir / "results" / "objects" / OBJECT / "meta.json").read_text())
+    weight = float(meta_object["mass"]) * 9.81
     with np.load(cf / "replay" / OBJECT / "traces_0.npz") as traces:
         for row in table.iter_rows(named=True):
             load = np.linalg.norm(traces[trace_key(row["grasp_id"], "load")], axis=1)

@@ -90,9 +90,10 @@ class RampLoad:
     slip_speed: float = 0.0012  # [m/s]
     hold_fraction: float = 1.0
     feedback_steps: int = 20
-    held: float | None = None  # the held magnitude [N], once the object has slid
+    # the magnitude [N] once the object has slid: held (path hold) or servoed (path servo, as at
+    # the end of the last chunk)
+    held: float | None = None
     slip_step: int | None = None  # the step it first slid at
-    servo: float | None = None  # the servoed magnitude [N] at the end of the last chunk
 
     def __post_init__(self) -> None:
         if self.path not in LOAD_PATHS:
@@ -103,8 +104,6 @@ class RampLoad:
         """|F| [N] at steps ``first .. first + n - 1``."""
         if self.held is not None:
             return np.full(n, self.held)
-        if self.servo is not None:
-            return np.full(n, self.servo)
         return ramp_magnitude(n, self.dt, self.start_s, self.rate, self.ceiling, self.weight, first)
 
     def forces(self, first: int, n: int) -> np.ndarray:
@@ -131,22 +130,20 @@ class RampLoad:
     def observe(self, first: int, speed: np.ndarray) -> None:
         """Take the object's speeds [m/s] at steps ``first ..``: a ``hold`` ramp freezes at
         ``hold_fraction`` of the load of the first loaded step at ``slip_speed`` or faster."""
-        if self.path == "linear" or self.held is not None:
+        if self.path == "linear" or (self.path == "hold" and self.held is not None):
             return
-        magnitude = self.magnitudes(first, len(speed))
-        if self.servo is not None:  # one bang-bang step per chunk on the chunk's last speed
+        if self.held is not None:  # servo: one bang-bang step per chunk on its last speed
             step = self.rate * self.weight * len(speed) * self.dt
             up = speed[-1] < self.slip_speed
-            self.servo = float(np.clip(magnitude[-1] + (step if up else -step), 0.0,
-                                       self.ceiling * self.weight))  # fmt: skip
+            self.held = float(np.clip(self.held + (step if up else -step), 0.0,
+                                      self.ceiling * self.weight))  # fmt: skip
             return
+        magnitude = self.magnitudes(first, len(speed))
         slid = np.flatnonzero((magnitude > 0) & (speed >= self.slip_speed))
         if len(slid):
             self.slip_step = first + int(slid[0])
-            if self.path == "hold":
-                self.held = self.hold_fraction * float(magnitude[slid[0]])
-            else:
-                self.servo = float(magnitude[slid[0]])
+            fraction = self.hold_fraction if self.path == "hold" else 1.0
+            self.held = fraction * float(magnitude[slid[0]])
 
 
 def ramp_load(ramp: dict, direction: np.ndarray, weight: float, dt: float) -> RampLoad:
