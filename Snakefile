@@ -11,6 +11,7 @@ include: "workflow/rules/synthesis.smk"
 include: "workflow/rules/replay.smk"
 include: "workflow/rules/dataset.smk"
 include: "workflow/rules/train.smk"
+include: "workflow/rules/monitor.smk"
 
 
 # The creep-free load-ramp benchmark beside the main run (README "Load ramp"), when enabled.

@@ -213,6 +213,8 @@ def test_load_config_with_shared_assets(ycb_dir: Path):
         ({"only_objects": "014_lemon"}, ["only_objects", "[014_lemon]"]),
         ({"creep_free": {"enabled": "true", "sweep_windows_s": ["0.02"]}},
          ["creep_free.sweep_windows_s", "[0.02]"]),
+        ({"monitor": {"window_s": "0.03"}}, ["monitor.window_s = 0.03", "sweep.windows_s"]),
+        ({"monitor": {"stride": "0"}}, ["monitor.stride"]),
         ({"replay": {"ramp": {"path": "stop"}}}, ["replay.ramp.path"]),
         ({"replay": {"ramp": {"hold_fraction": "1.5"}}}, ["replay.ramp.hold_fraction"]),
     ],

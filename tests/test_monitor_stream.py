@@ -20,7 +20,7 @@ from graspstab.learning.train_model import train_model
 from graspstab.monitor.checkpoint import load_monitor, read_trained
 from graspstab.monitor.constants import MonitorConstants, MonitorError
 from graspstab.monitor.scoring import TorchScorer
-from graspstab.monitor.stream import StreamingMonitor
+from graspstab.monitor.stream import StreamingMonitor, debounced, score_trace, scored_frames
 from tests.test_learning_train import LSTM, TRAIN, W, write_dataset
 
 STEPS = 12  # window of the parity models [frames]
@@ -93,6 +93,50 @@ def test_stride_scores_every_kth_frame_from_the_first_full_window() -> None:
     np.testing.assert_array_equal(scored, np.arange(STEPS - 1, len(trace), 5))
     reference = _batch_reference(model, trace, mean, std)
     np.testing.assert_allclose(out.prob[scored], reference[scored - (STEPS - 1)], atol=1e-6)
+
+
+@pytest.mark.parametrize("family", list(SPECS))
+@pytest.mark.parametrize(("stride", "debounce"), [(1, 1), (3, 1), (4, 3)])
+def test_batched_trace_scoring_equals_the_frame_by_frame_monitor(
+    family: str, stride: int, debounce: int
+) -> None:
+    torch.manual_seed(1)
+    model = build_model(SPECS[family])
+    mean, std = _stats()
+    trace = _trace(5 * STEPS + 3, mean, std, seed=2)
+    probs = StreamingMonitor(model, mean, std, 0.5, STEPS, stride=stride).run(trace).prob
+    # a threshold between two neighbouring scores near the median: about half the scores are
+    # unstable and none sits within float noise of the threshold
+    ranked = np.sort(probs[np.isfinite(probs)])
+    gaps = np.diff(ranked)
+    mid = len(ranked) // 2
+    i = mid + int(np.argmax(gaps[mid:] > 1e-5))
+    threshold = float(ranked[i] + gaps[i] / 2)
+    streamed = StreamingMonitor(model, mean, std, threshold, STEPS, stride=stride,
+                                debounce=debounce).run(trace)  # fmt: skip
+    scorer = TorchScorer(model, MonitorConstants(mean, std, threshold, STEPS))
+    # batches of 7 windows: the chunking must not matter
+    batched = score_trace(scorer, trace, stride=stride, debounce=debounce, batch_size=7)
+    np.testing.assert_array_equal(np.isnan(batched.prob), np.isnan(streamed.prob))
+    np.testing.assert_allclose(batched.prob, streamed.prob, rtol=0, atol=1e-6, equal_nan=True)
+    np.testing.assert_array_equal(batched.warning, streamed.warning)
+    assert streamed.warning.any() and not streamed.warning.all()  # the rule is exercised
+
+
+def test_batched_scoring_of_a_trace_shorter_than_the_window_scores_nothing() -> None:
+    scorer = TorchScorer(LastValue(), MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.5, 5))
+    out = score_trace(scorer, np.ones((4, 5, 2)))
+    assert np.isnan(out.prob).all() and not out.warning.any()
+    assert scored_frames(4, 5, 1).size == 0
+    np.testing.assert_array_equal(scored_frames(12, 5, 3), [4, 7, 10])
+
+
+def test_debounced_counts_consecutive_unstable_scores() -> None:
+    flags = np.array([1, 1, 0, 1, 1, 1, 0, 1], dtype=bool)
+    assert debounced(flags, 1).tolist() == flags.tolist()
+    assert debounced(flags, 2).tolist() == [0, 1, 0, 0, 1, 1, 0, 0]
+    assert debounced(flags, 3).tolist() == [0, 0, 0, 0, 0, 1, 0, 0]
+    assert debounced(np.zeros(0, dtype=bool), 2).size == 0
 
 
 class LastValue(nn.Module):

@@ -397,6 +397,41 @@ def _record(family: str, seed: int, val_unstable: float, **extra: Any) -> dict[s
     return {**rec, **extra}
 
 
+def _monitor_artefacts(root: Path, figs: dict[str, Path]) -> dict[str, Path]:
+    """The streaming monitor's artefacts as rule report gets them: a summary with one failing
+    grasp warned in time per split and no stable grasp (its rates undefined), two figures and
+    one export's files."""
+    from graspstab.monitor.constants import MonitorConstants, write_constants
+    from graspstab.monitor.episodes import evaluate_episode, summarise_episodes
+
+    u = np.zeros(3000, dtype=np.uint8)
+    u[2000:] = 1
+    warning = np.zeros(3000, dtype=bool)
+    warning[1500:] = True
+    one = evaluate_episode(warning, u, 0, 3000, contact_lost=False, dt=5e-4, offset_s=0.1,
+                           horizon_s=0.15, object_id="o", grasp_id=0, split="test")  # fmt: skip
+    split = summarise_episodes([one])
+    monitors = {m: {"family": m, "window_steps": 20, "threshold": 0.4,
+                    "splits": {"val": split, "test": split}}
+                for m in ("cnn", "gru", "lstm", "proxy")}  # fmt: skip
+    write_json(root / "summary.json", {
+        "settings": {"stride": 10, "stride_s": 0.005, "debounce": 1, "dt": 5e-4, "window_s": 0.01,
+                     "offset_s": 0.1, "horizon_s": 0.15, "v_slip": 0.0012},
+        "replays": {"val": 1, "test": 1}, "monitors": monitors,
+        "timeline": {"monitor": "lstm", "object": "o", "grasp_id": 0, "split": "test"},
+    })  # fmt: skip
+    export = root / "export" / "pick"
+    write_constants(export / "constants.json",
+                    MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.4, 20, family="lstm"))
+    for name in ("model.onnx", "model.torchscript.pt"):
+        (export / name).write_bytes(b"0" * 2048)
+    return {"summary": root / "summary.json", "leads_figure": _png(root / "leads.png", 40),
+            "timeline_figure": _png(root / "timeline.png", 41),
+            **{f"export_pick_{k}": export / n for k, n in (
+                ("constants", "constants.json"), ("onnx", "model.onnx"),
+                ("torchscript", "model.torchscript.pt"))}}  # fmt: skip
+
+
 def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
     """A small results tree with every artefact write_report reads, and its keyword arguments.
     Validation never slips (as in a quick run), so undefined values must render as such."""
@@ -471,6 +506,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         if rule not in bench and rule != "report":
             bench[rule] = [_bench(r / "benchmarks" / rule / "x.tsv", 1.0, "100")]
     config = load_config(REPO / "config", SCHEMA, check_files=False)
+    monitor = _monitor_artefacts(r / "monitor", figs)
     return {
         "config": config, "figures": figs, "object_meta": metas,
         "hand_json": r / "hand" / "hand.json", "benchmark_files": bench["preprocess_object"],
@@ -479,7 +515,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         "summary.json", "sweep_summaries": sorted(r.glob("datasets/sweep/*/summary.json")),
         "learning": study_artefacts(r), "learning_figures": learning, "rule_benchmarks": bench,
         "rulegraph": graphs["rulegraph"], "jobgraph": graphs["dag"],
-        "speeds_summary": r / "datasets" / "speeds.json",
+        "speeds_summary": r / "datasets" / "speeds.json", "monitor": monitor,
     }  # fmt: skip
 
 
@@ -520,10 +556,12 @@ def test_report_has_every_section_and_decodable_images(report_html: Path) -> Non
     assert order == sorted(order)  # contents, headline and DAG overview come first
     images = _images(html)
     # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree),
-    # + the two speed figures of "Two protocols side by side" in the toy run (creep-free enabled)
+    # + the monitor's two, + in the toy run (creep-free enabled) the two speed figures of "Two
+    # protocols side by side" and the monitor's two under the ramp
     side_by_side = "This run has no creep-free benchmark" not in html
     assert side_by_side == ('id="protocols-speeds-ramp"' in html)
-    assert len(images) == 21 + 2 * side_by_side
+    assert side_by_side == ('id="monitor-timeline-ramp"' in html)
+    assert len(images) == 23 + 4 * side_by_side
     for data in images:
         with Image.open(io.BytesIO(data)) as img:
             img.load()

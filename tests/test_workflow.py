@@ -198,8 +198,9 @@ def test_report_is_self_contained(run):
     assert not re.search(r'(src|href)="https?://', html)
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
     # objects, hand x2, pre-grasp, gallery, histograms, replay, speeds, window + 11 learning
-    # figures + the rule graph + the two speed figures of "Two protocols side by side"
-    assert len(images) == 9 + 11 + 1 + 2
+    # figures + the rule graph + the two speed figures of "Two protocols side by side" + the
+    # monitor's two figures under each protocol
+    assert len(images) == 9 + 11 + 1 + 2 + 2 + 2
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -319,6 +320,60 @@ def test_learning_studies(run):
     assert proxy["test"]["n"] == metrics["test"]["n"]
 
 
+def readme_monitor_example() -> str:
+    """The README's example of loading an exported model and feeding it frames."""
+    text = (REPO / "README.md").read_text()
+    after = text[text.index("Load one and feed it frames:"):]
+    return re.search(r"```python\n(.*?)```", after, flags=re.S).group(1)
+
+
+@pytest.mark.workflow
+def test_monitor_exports_and_grasp_level_evaluation(run):
+    import polars as pl
+
+    from graspstab.monitor.export import load_onnx, load_torchscript
+
+    workdir, env, _ = run
+    res = workdir / "results"
+    summary = json.loads((res / "monitor" / "summary.json").read_text())
+    assert set(summary["monitors"]) == {"cnn", "gru", "lstm", "proxy"}
+    # held out: the lemon (validation, four shards of four) and the cube (test, two of four)
+    replays = summary["replays"]
+    assert 0 < replays["val"] <= 16 and 0 < replays["test"] <= 8
+    for model in ("cnn", "gru", "lstm"):
+        mine = summary["monitors"][model]
+        metrics = json.loads((res / "train" / "sweep" / model / "w10ms" / "seed42" /
+                              "metrics.json").read_text())  # fmt: skip
+        assert mine["window_steps"] == 20
+        assert mine["threshold"] == metrics["threshold"]["threshold"]
+        for split in ("val", "test"):
+            assert mine["splits"][split]["grasps"] == replays[split]
+    episodes = pl.read_parquet(res / "monitor" / "episodes.parquet")
+    assert episodes.height == 4 * (replays["val"] + replays["test"])
+    # the onset is the replay's, whichever monitor reads it
+    onsets = episodes.group_by("object", "grasp_id").agg(pl.col("onset").n_unique())
+    assert onsets["onset"].max() == 1
+    for name in ("baseline_cnn", "baseline_gru", "baseline_lstm"):
+        export = res / "monitor" / "export" / name
+        scorer = load_onnx(export / "model.onnx")
+        assert scorer.constants.window_steps == 400
+        assert load_torchscript(export / "model.torchscript.pt").constants.family == name[9:]
+        assert json.loads((export / "constants.json").read_text())["threshold"] == (
+            scorer.constants.threshold)
+    choice = json.loads((res / "studies" / "sweep" / "summary.json").read_text())["choice"]
+    pick = load_onnx(res / "monitor" / "export" / "pick" / "model.onnx").constants
+    assert pick.family == choice["pick"]["family"]
+    assert pick.window_steps == round(choice["pick"]["window_s"] / 5e-4)
+    for figure in ("lead_times.png", "timeline.png"):
+        assert (res / "figures" / "monitor" / figure).stat().st_size > 1000
+    # the README's example runs as written in a finished run's directory
+    proc = subprocess.run([sys.executable, "-c", readme_monitor_example()], cwd=workdir, env=env,
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert re.search(r"threshold \d\.\d{3}\n", proc.stdout)
+    assert re.search(r"grasp \d+: (warning at \d\.\d{4} s|no warning in \d+ frames)", proc.stdout)
+
+
 @pytest.mark.workflow
 def test_learning_rate_change_reruns_that_model_only(run):
     workdir, env, config = run
@@ -335,7 +390,10 @@ def test_learning_rate_change_reruns_that_model_only(run):
 
 
 EXPENSIVE = {"preprocess_object", "anneal_grasps", "replay_grasps", "tune_model", "train_model",
-             "train_sweep_model", "train_split_model"}  # fmt: skip
+             "train_sweep_model", "train_split_model", "export_monitor",
+             "evaluate_monitor"}  # fmt: skip
+# (export_pick is cached too, but its input, the sweep summary, holds measured latencies, so it
+# differs between runs and the job rightly recomputes: the latency-aware pick may change with it)
 
 
 @pytest.mark.workflow
@@ -479,7 +537,10 @@ def test_reverted_change_is_found_by_content(run):
     all_jobs = _dry_jobs(workdir, config, env, "--forceall")
     before = _expensive_outputs(workdir, all_jobs)
     changed = _with(config, TOY_SYNTHESIS, TOY_SYNTHESIS.replace("1500", "1400"))
-    proc = _snakemake(workdir, "results/report.html", *changed, env=env)
+    # the changed run only as far as the baseline dataset: enough to change every grasp, replay
+    # and window (the learning jobs then rerun on the reverted run's inputs, by mtime), at a
+    # fraction of a whole run's cost
+    proc = _snakemake(workdir, "results/datasets/baseline/index.parquet", *changed, env=env)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert _expensive_outputs(workdir, all_jobs) != before  # the change did change the results
 

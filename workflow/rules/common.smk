@@ -137,6 +137,21 @@ def creep_free_sweep_ms():
     return [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
 
 
+# The streaming monitor (monitor.smk).
+
+
+def held_out_replays(kind, root="results"):
+    """The replay tables or trace files of the validation and test objects (3.5.1)."""
+    held_out = {o for o, s in object_splits().items() if s in ("val", "test")}
+    return [p for p in replay_outputs(kind, root) if Path(p).parent.name in held_out]
+
+
+def sweep_first_seed(model, ms, name, root="results"):
+    """One file of a sweep configuration's first-seed run (the run the monitor and export use)."""
+    seed = config["sweep"]["seeds"][0]
+    return f"{root}/train/sweep/{model}/w{ms}ms/seed{seed}/{name}"
+
+
 # Learning studies (train.smk).
 
 MODELS = ["cnn", "gru", "lstm"]

@@ -94,6 +94,8 @@ rule report:
         # the studies' artefacts (graspstab.learning.artefacts), named study_<artefact>
         **{f"study_{k}": v for k, v in STUDY_ARTEFACTS.items()},
         learning_figures=rules.plot_learning.output,
+        # the streaming monitor's grasp-level summary, figures and exports, named monitor_<artefact>
+        **{f"monitor_{k}": v for k, v in MONITOR_ARTEFACTS.items()},
         # the creep-free benchmark's artefacts when it is enabled, named creep_free_<artefact>
         **{f"creep_free_{k}": v for k, v in CREEP_FREE_ARTEFACTS.items()},
         rulegraph=rules.rulegraph.output.rules,

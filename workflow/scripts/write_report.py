@@ -10,6 +10,7 @@ sm = snakemake  # noqa: F821  (injected by Snakemake)
 setup_logging(sm.log[0])
 PREFIX = "benchmark_"
 CREEP_FREE = "creep_free_"
+MONITOR = "monitor_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -47,5 +48,9 @@ write_report(
         name.removeprefix(CREEP_FREE): files
         for name, files in sm.input.items()
         if name.startswith(CREEP_FREE)
+    },
+    monitor={
+        name.removeprefix(MONITOR): files for name, files in sm.input.items()
+        if name.startswith(MONITOR)
     },
 )

@@ -165,3 +165,61 @@ class StreamingMonitor:
         """Monitor a whole trace (T, 5, 2) from an empty buffer (resets first)."""
         self.reset()
         return self.push_many(trace)
+
+
+def scored_frames(frames: int, window_steps: int, stride: int) -> np.ndarray:
+    """The frames a monitor scores on a trace of ``frames`` frames: the one that fills the buffer
+    (``window_steps - 1``) and every ``stride``-th after it."""
+    w, s = check_positive("window_steps", window_steps), check_positive("stride", stride)
+    return np.arange(w - 1, frames, s, dtype=np.int64)
+
+
+def debounced(unstable: np.ndarray, debounce: int) -> np.ndarray:
+    """The warning after each score: up while the last ``debounce`` scores were all unstable."""
+    flags = np.asarray(unstable, dtype=bool)
+    steps = np.arange(len(flags))
+    last_stable = np.maximum.accumulate(np.where(flags, -1, steps)) if len(flags) else steps
+    run = steps - last_stable  # consecutive unstable scores up to and including each one
+    return run >= check_positive("debounce", debounce)
+
+
+def score_trace(
+    scorer: WindowScorer,
+    trace: Any,
+    *,
+    threshold: float | None = None,
+    stride: int = 1,
+    debounce: int = 1,
+    batch_size: int = 4096,
+) -> MonitorTrace:
+    """What :meth:`StreamingMonitor.run` gives on ``trace`` (T, 5, 2), scored in batches: the same
+    frames scored, the same windows, the same warning rule (tests), at a fraction of the cost of
+    one call per frame. For evaluating many replays offline; a controller pushes frames."""
+    x = np.asarray(trace, dtype=np.float32)
+    if x.ndim != 3 or x.shape[1:] != FRAME_SHAPE:
+        raise MonitorError(
+            f"a trace is (T, {FRAME_SHAPE[0]}, {FRAME_SHAPE[1]}) raw forces (time, fingertips,"
+            f" (normal, shear)); got shape {x.shape}"
+        )
+    if not np.isfinite(x).all():
+        bad = int(np.flatnonzero(~np.isfinite(x).all(axis=(1, 2)))[0])
+        raise MonitorError(f"frame {bad} has a non-finite force")
+    cut = check_threshold(scorer.constants.threshold if threshold is None else threshold)
+    w = scorer.constants.window_steps
+    frames = scored_frames(len(x), w, stride)
+    probs = np.zeros(len(frames), dtype=np.float64)
+    size = check_positive("batch_size", batch_size)
+    # (T - W + 1, 5, 2, W) views of every full window, no copy (none when T < W)
+    views = np.lib.stride_tricks.sliding_window_view(x, w, axis=0) if len(frames) else x
+    for lo in range(0, len(frames), size):
+        rows = frames[lo : lo + size] - (w - 1)
+        probs[lo : lo + size] = scorer(np.moveaxis(views[rows], -1, 1))
+    prob = np.full(len(x), np.nan)
+    prob[frames] = probs
+    warning = np.zeros(len(x), dtype=bool)
+    if len(frames):
+        state = debounced(probs >= cut, debounce)
+        # the warning keeps its value on the frames between two scores
+        held = np.searchsorted(frames, np.arange(len(x)), side="right") - 1
+        warning = np.where(held >= 0, state[np.maximum(held, 0)], False)
+    return MonitorTrace(prob, warning)

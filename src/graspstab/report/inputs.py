@@ -42,6 +42,7 @@ def benchmark_wildcards(
         "trim_sweep_window": {"ms": windows},
         "train_model": {"model": models, "seed": list(config["train"]["seeds"])},
         "tune_model": {"model": models},
+        "export_monitor": {"model": models},
         "train_sweep_model": {"model": models, "ms": sweep, "seed": list(config["sweep"]["seeds"])},
         # the creep-free benchmark's rules (creep_free.smk): no jobs unless it is enabled
         "replay_grasps_creep_free": shards_cf,

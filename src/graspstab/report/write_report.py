@@ -22,6 +22,7 @@ from graspstab.report.creep_free import Benchmark, creep_free_section
 from graspstab.report.funnel import funnel, funnel_table
 from graspstab.report.headline import headline_section, run_scale
 from graspstab.report.learning import learning_section
+from graspstab.report.monitor import monitor_section
 from graspstab.report.provenance import (
     git_commit,
     package_versions,
@@ -39,7 +40,8 @@ SECTION_IDS = (
     "unstable-speeds", "datasets", "window",
     "dataset-counts", "learning", "tuning", "baseline-configurations", "metrics", "confusion",
     "per-object", "split-robustness", "sweep", "latency", "operating-points", "errors",
-    "threshold-transfer", "reliability", "proxy", "protocols", "provenance", "stage-times",
+    "threshold-transfer", "reliability", "proxy", "monitor", "monitor-leads", "monitor-timeline",
+    "protocols", "provenance", "stage-times",
     "funnel", "configuration",
 )  # fmt: skip
 
@@ -478,6 +480,7 @@ def write_report(
     jobgraph: Path | None = None,
     speeds_summary: Path | None = None,
     creep_free: Mapping[str, Any] | None = None,
+    monitor: Mapping[str, Any] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
@@ -485,7 +488,9 @@ def write_report(
     preprocessing benchmarks, ``rule_benchmarks`` every rule's (rule -> files), ``rulegraph``
     and ``jobgraph`` Snakemake's ``--rulegraph`` and ``--dag`` dot files. ``creep_free``: the
     creep-free benchmark's artefacts (rule report's ``creep_free_*`` inputs, prefix stripped),
-    set beside the main run's in the section "Two protocols side by side"."""
+    set beside the main run's in the section "Two protocols side by side". ``monitor``: the
+    streaming monitor's artefacts (``monitor_*`` inputs, prefix stripped), the section
+    "Grasp-level warnings"."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -528,6 +533,8 @@ def write_report(
         *(_contact_parts(speeds_summary, figures, config["replay"]) if replay_summaries else []),
         *_dataset_parts(dataset_summary, sweep_summaries, figures),
         *([learning_section(learning, learning_figures or {}, config)] if learning else []),
+        monitor_section(monitor, creep_free if creep_free and "monitor_summary" in creep_free
+                        else None),  # fmt: skip
         *_protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_summaries,
                           learning, figures),  # fmt: skip
         *_provenance_parts(
