@@ -43,6 +43,21 @@ class MonitorTrace(NamedTuple):
     warning: np.ndarray  # (T,) bool
 
 
+def check_trace(frames: Any, first: int = 0) -> np.ndarray:
+    """A raw trace as float32 (T, 5, 2), or an error naming the shape or the first non-finite
+    frame (numbered from ``first``, the frames already seen)."""
+    x = np.asarray(frames, dtype=np.float32)
+    if x.ndim != 3 or x.shape[1:] != FRAME_SHAPE:
+        raise MonitorError(
+            f"a trace is (T, {FRAME_SHAPE[0]}, {FRAME_SHAPE[1]}) raw forces (time, fingertips,"
+            f" (normal, shear)); got shape {x.shape}"
+        )
+    bad = np.flatnonzero(~np.isfinite(x).all(axis=(1, 2)))
+    if len(bad):
+        raise MonitorError(f"frame {first + int(bad[0])} has a non-finite force")
+    return x
+
+
 class StreamingMonitor:
     """Frame-by-frame instability monitor around a trained model (any family, any format)."""
 
@@ -143,15 +158,7 @@ class StreamingMonitor:
 
     def push_many(self, frames: Any) -> MonitorTrace:
         """Push a run of raw frames (T, 5, 2), continuing from the current state."""
-        x = np.asarray(frames, dtype=np.float32)
-        if x.ndim != 3 or x.shape[1:] != FRAME_SHAPE:
-            raise MonitorError(
-                f"a trace is (T, {FRAME_SHAPE[0]}, {FRAME_SHAPE[1]}) raw forces (time, fingertips,"
-                f" (normal, shear)); got shape {x.shape}"
-            )
-        bad = np.flatnonzero(~np.isfinite(x).all(axis=(1, 2)))
-        if len(bad):
-            raise MonitorError(f"frame {self._count + int(bad[0])} has a non-finite force")
+        x = check_trace(frames, first=self._count)
         prob = np.full(len(x), np.nan)
         warning = np.zeros(len(x), dtype=bool)
         for t in range(len(x)):
@@ -195,15 +202,7 @@ def score_trace(
     """What :meth:`StreamingMonitor.run` gives on ``trace`` (T, 5, 2), scored in batches: the same
     frames scored, the same windows, the same warning rule (tests), at a fraction of the cost of
     one call per frame. For evaluating many replays offline; a controller pushes frames."""
-    x = np.asarray(trace, dtype=np.float32)
-    if x.ndim != 3 or x.shape[1:] != FRAME_SHAPE:
-        raise MonitorError(
-            f"a trace is (T, {FRAME_SHAPE[0]}, {FRAME_SHAPE[1]}) raw forces (time, fingertips,"
-            f" (normal, shear)); got shape {x.shape}"
-        )
-    if not np.isfinite(x).all():
-        bad = int(np.flatnonzero(~np.isfinite(x).all(axis=(1, 2)))[0])
-        raise MonitorError(f"frame {bad} has a non-finite force")
+    x = check_trace(trace)
     cut = check_threshold(scorer.constants.threshold if threshold is None else threshold)
     w = scorer.constants.window_steps
     frames = scored_frames(len(x), w, stride)
