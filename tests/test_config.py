@@ -82,6 +82,10 @@ def test_profiles_protocol_choices():
     # the study profile: the whole protocol at reduced counts, >= 3 seeds, sweep 0.01-0.5 s
     assert len(study["train"]["seeds"]) >= 3 and len(study["sweep"]["seeds"]) >= 3
     assert min(study["sweep"]["windows_s"]) == 0.01 and max(study["sweep"]["windows_s"]) == 0.5
+    # ... with 3.4.3's sweep configurations and the creep-free benchmark (issue 15); quick keeps
+    # the tuned configurations and leaves the benchmark off
+    assert study["sweep"]["configuration"] == "reference" and study["creep_free"]["enabled"]
+    assert quick["sweep"]["configuration"] == "tuned" and not quick["creep_free"]["enabled"]
     for cfg in (quick, study, thesis):
         validate_schema(cfg, SCHEMA)
 
