@@ -5,8 +5,16 @@ W frames and scores the window every ``--stride`` frames. For each model and for
 eager, TorchScript, ONNX Runtime) this feeds a random raw trace through
 ``graspstab.monitor.stream.StreamingMonitor`` after the buffer has filled and a warm-up, times
 every ``push``, and prints the mean, median and 99th percentile per frame against the frame
-period. Issue 16's targets: every family below 0.5 ms (real time), the latency-aware pick at or
-below 0.1 ms in its best format.
+period, at stride 1 (a score every frame) and at each further ``--strides`` value (the workflow's
+monitor scores every 10th frame, ``monitor.stride``). Issue 16's targets: every family below 0.5
+ms (real time), the latency-aware pick at or below 0.1 ms in its best format.
+
+Formats: PyTorch eager, TorchScript, ONNX Runtime (each scores the whole window), and for the CNN
+``incremental`` (``graspstab.monitor.incremental``: each layer's shift-invariant part cached, so
+a score recomputes only the positions the padding reaches). Each case also prints the
+multiply-adds of one whole-window evaluation and the rate that scoring every frame would need:
+a recurrent model must rerun its whole window per score (its state starts at the window's first
+frame), so at stride 1 that rate bounds its cost from below in every format.
 
 Models: trained checkpoints (``--checkpoint PATH``, repeatable; their own window, normalisation
 and threshold), or, without any, random weights in the reference architectures: each family's
@@ -15,11 +23,12 @@ baseline (``config/model/<family>.yaml``) at the baseline window (``labels.windo
 the window the workflow's grasp-level monitor runs, ``monitor.window_s``), of which
 ``--pick-family``'s (LSTM by default) is the latency-aware pick. Weights do not change the cost.
 
-    python benchmarks/monitor_latency.py [--frames 2000] [--warmup 200] [--stride 1]
-        [--formats eager torchscript onnx] [--checkpoint results/train/.../model.pt ...]
+    python benchmarks/monitor_latency.py [--frames 2000] [--warmup 200] [--strides 1 10]
+        [--formats eager torchscript onnx incremental] [--checkpoint results/.../model.pt ...]
 
 Torch runs one intra-op thread (``torch.set_num_threads(1)``), ONNX Runtime a session with
-``intra_op_num_threads=1``; the exports go to a temporary directory.
+``intra_op_num_threads=1``, NumPy's BLAS one thread (threadpoolctl); the exports go to a
+temporary directory.
 """
 
 from __future__ import annotations
@@ -34,6 +43,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from threadpoolctl import threadpool_limits
 from torch import nn
 
 from graspstab.common.provenance import cpu_model, installed_versions
@@ -43,11 +53,12 @@ from graspstab.learning.models import build_model, count_parameters
 from graspstab.monitor.checkpoint import read_trained
 from graspstab.monitor.constants import MonitorConstants
 from graspstab.monitor.export import export_onnx, export_torchscript, load_onnx, load_torchscript
+from graspstab.monitor.incremental import IncrementalCNNScorer
 from graspstab.monitor.scoring import TorchScorer, WindowScorer
 from graspstab.monitor.stream import StreamingMonitor
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "config"
-FORMATS = ("eager", "torchscript", "onnx")
+FORMATS = ("eager", "torchscript", "onnx", "incremental")
 FRAME_PERIOD_MS = 0.5  # 2 kHz
 PICK_TARGET_MS = 0.1
 
@@ -94,8 +105,29 @@ def checkpoint_cases(paths: list[str]) -> list[Case]:
     return cases
 
 
+def window_macs(model: nn.Module, steps: int) -> int:
+    """Multiply-adds of one whole-window evaluation (convolutions, recurrences, linear layers)."""
+    total = 0
+    for mod in model.modules():
+        if isinstance(mod, nn.Conv1d):
+            total += mod.weight.numel() * steps
+        elif isinstance(mod, nn.RNNBase):
+            total += sum(p.numel() for name, p in mod.named_parameters()
+                         if name.startswith("weight")) * steps  # fmt: skip
+        elif isinstance(mod, nn.Linear):
+            total += mod.weight.numel()
+    return total
+
+
+def applies(case: Case, fmt: str) -> bool:
+    """Whether a format runs this case's model (incremental scoring is for the CNN)."""
+    return fmt != "incremental" or case.constants.family == "cnn"
+
+
 def scorer_for(case: Case, fmt: str, stem: Path) -> WindowScorer:
     """The case's model in one format (exported to ``stem`` + suffix where needed)."""
+    if fmt == "incremental":
+        return IncrementalCNNScorer(case.model, case.constants)
     if fmt == "eager":
         return TorchScorer(case.model, case.constants)
     if fmt == "torchscript":
@@ -134,7 +166,7 @@ def main() -> None:
     parser.add_argument("--formats", nargs="+", choices=FORMATS, default=list(FORMATS))
     parser.add_argument("--frames", type=int, default=2000, help="timed frames per case")
     parser.add_argument("--warmup", type=int, default=200, help="untimed scored frames first")
-    parser.add_argument("--stride", type=int, default=1)
+    parser.add_argument("--strides", type=int, nargs="+", default=[1, 10])
     parser.add_argument("--pick-family", default="lstm")
     parser.add_argument("--pick-window-s", type=float, default=0.01)
     parser.add_argument("--seed", type=int, default=0)
@@ -143,32 +175,43 @@ def main() -> None:
     torch.set_num_threads(1)
     cases = (checkpoint_cases(args.checkpoint) if args.checkpoint
              else reference_cases(args.pick_family, args.pick_window_s, args.seed))  # fmt: skip
-    versions = installed_versions(["torch", "onnxruntime"])
+    versions = installed_versions(["torch", "onnxruntime", "numpy"])
     print(f"CPU {cpu_model()}; torch {versions['torch']} ({torch.get_num_threads()} thread), "
-          f"onnxruntime {versions['onnxruntime']} (1 intra-op thread); stride {args.stride}, "
-          f"{args.frames} timed frames after {args.warmup} warm-up; frame period "
-          f"{FRAME_PERIOD_MS} ms (2 kHz)")  # fmt: skip
-    header = (f"{'model':<26} {'W':>4} {'params':>8} {'format':<12} {'mean ms':>8} "
-              f"{'median':>8} {'p99':>8} {'of 0.5 ms':>9}  verdict")  # fmt: skip
-    print(header)
-    print("-" * len(header))
-    with tempfile.TemporaryDirectory() as tmpdir:
+          f"onnxruntime {versions['onnxruntime']} (1 intra-op thread), numpy "
+          f"{versions['numpy']} (1 BLAS thread); {args.frames} timed frames after "
+          f"{args.warmup} warm-up; frame period {FRAME_PERIOD_MS} ms (2 kHz)")  # fmt: skip
+    header = (f"{'model':<26} {'W':>4} {'params':>8} {'format':<12} {'stride':>6} "
+              f"{'mean ms':>8} {'median':>8} {'p99':>8} {'of 0.5 ms':>9}  verdict")  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmpdir, threadpool_limits(1):
         for k, case in enumerate(cases):
-            best = None
-            for fmt in args.formats:
+            steps = case.constants.window_steps
+            macs = window_macs(case.model, steps)
+            need = macs / (FRAME_PERIOD_MS * 1e-3) / 1e9
+            print(f"\n{case.label}: {macs / 1e6:.2f} M multiply-adds per whole-window score; "
+                  f"whole-window scoring every frame needs {need:.1f} G multiply-adds/s")
+            print(header)
+            print("-" * len(header))
+            best: dict[int, tuple[float, str]] = {}
+            for fmt in [f for f in args.formats if applies(case, f)]:
                 scorer = scorer_for(case, fmt, Path(tmpdir) / f"case{k}")
-                monitor = StreamingMonitor.from_scorer(scorer, stride=args.stride)
-                t = time_monitor(monitor, args.frames, args.warmup, args.seed)
-                verdict = "real time" if t["mean"] < FRAME_PERIOD_MS else "TOO SLOW"
-                print(f"{case.label:<26} {case.constants.window_steps:>4} "
-                      f"{count_parameters(case.model):>8} {fmt:<12} {t['mean']:>8.4f} "
-                      f"{t['median']:>8.4f} {t['p99']:>8.4f} "
-                      f"{t['mean'] / FRAME_PERIOD_MS:>8.0%}  {verdict}")  # fmt: skip
-                best = min(best or (t["mean"], fmt), (t["mean"], fmt))
-            if case.pick and best is not None:
-                ok = "meets" if best[0] <= PICK_TARGET_MS else "misses"
-                print(f"  -> pick: best {best[1]} {best[0]:.4f} ms/frame, {ok} the "
-                      f"{PICK_TARGET_MS} ms target")  # fmt: skip
+                for stride in args.strides:
+                    monitor = StreamingMonitor.from_scorer(scorer, stride=stride)
+                    t = time_monitor(monitor, args.frames, args.warmup, args.seed)
+                    verdict = "real time" if t["mean"] < FRAME_PERIOD_MS else "TOO SLOW"
+                    print(f"{case.label:<26} {steps:>4} {count_parameters(case.model):>8} "
+                          f"{fmt:<12} {stride:>6} {t['mean']:>8.4f} {t['median']:>8.4f} "
+                          f"{t['p99']:>8.4f} {t['mean'] / FRAME_PERIOD_MS:>8.0%}  "
+                          f"{verdict}")  # fmt: skip
+                    best[stride] = min(best.get(stride, (t["mean"], fmt)), (t["mean"], fmt))
+            for stride, (ms, fmt) in sorted(best.items()):
+                line = f"  -> stride {stride}: best {fmt} {ms:.4f} ms/frame"
+                if case.pick:
+                    ok = "meets" if ms <= PICK_TARGET_MS else "misses"
+                    line += f"; the pick {ok} the {PICK_TARGET_MS} ms target"
+                else:
+                    ok = "meets" if ms < FRAME_PERIOD_MS else "misses"
+                    line += f"; {ok} the {FRAME_PERIOD_MS} ms real-time budget"
+                print(line)
 
 
 if __name__ == "__main__":

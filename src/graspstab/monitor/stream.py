@@ -8,6 +8,10 @@ while the last ``debounce`` scores were all unstable and dropped by the first st
 frames that are not scored it keeps its value. Scoring a window here gives the same probability
 as scoring that window in a batch with the learning stage's normalisation (tests).
 
+A scorer with per-frame state of its own (``monitor.incremental.IncrementalCNNScorer``: a CNN
+whose layers' shift-invariant parts are cached) is handed every frame and asked for the current
+window's probability instead.
+
 The ring holds every frame twice (slots ``i`` and ``i + W``), so the window is always the one
 contiguous slice ``ring[s : s + W]``: no per-frame copy or allocation of the window.
 """
@@ -101,6 +105,8 @@ class StreamingMonitor:
         self.stride = check_positive("stride", stride)
         self.debounce = check_positive("debounce", debounce)
         self._ring = np.zeros((2 * self.window_steps, *FRAME_SHAPE), dtype=np.float32)
+        # a scorer that keeps its own per-frame state (monitor.incremental) sees every frame
+        self._incremental = callable(getattr(scorer, "push_frame", None))
         self.reset()
 
     @property
@@ -121,6 +127,8 @@ class StreamingMonitor:
     def reset(self) -> None:
         """Forget every frame (a new grasp episode)."""
         self._ring.fill(0.0)
+        if self._incremental:
+            self.scorer.reset()
         self._count = 0
         self._wait = 0  # frames until the next score once the buffer is full
         self._above = 0  # consecutive scores at or above the threshold
@@ -140,9 +148,12 @@ class StreamingMonitor:
 
     def _step(self, x: np.ndarray) -> MonitorStep:
         w = self.window_steps
-        slot = self._count % w
-        self._ring[slot] = x
-        self._ring[slot + w] = x
+        if self._incremental:
+            self.scorer.push_frame(x)
+        else:
+            slot = self._count % w
+            self._ring[slot] = x
+            self._ring[slot + w] = x
         self._count += 1
         if self._count < w:
             return MonitorStep(None, False)
@@ -150,8 +161,11 @@ class StreamingMonitor:
             self._wait -= 1
             return MonitorStep(None, self._warning)
         self._wait = self.stride - 1
-        start = self._count % w
-        prob = self.scorer.score_one(self._ring[start : start + w])
+        if self._incremental:
+            prob = self.scorer.score_window()
+        else:
+            start = self._count % w
+            prob = self.scorer.score_one(self._ring[start : start + w])
         self._above = self._above + 1 if prob >= self.threshold else 0
         self._warning = self._above >= self.debounce
         return MonitorStep(prob, self._warning)
