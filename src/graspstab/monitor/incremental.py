@@ -129,9 +129,9 @@ class IncrementalCNNScorer:
         self._layers = _blocks(model)
         self._w1, self._b1, self._w2, self._b2 = _head(model)
         w = constants.window_steps
-        # cumulative padding reach from each end after each layer
-        self._reach_left = np.cumsum([layer.left for layer in self._layers]).tolist()
-        self._reach_right = np.cumsum([layer.right for layer in self._layers]).tolist()
+        # padding reach from each end after each level (level 0, the input: none)
+        self._reach_left = np.cumsum([0] + [layer.left for layer in self._layers]).tolist()
+        self._reach_right = np.cumsum([0] + [layer.right for layer in self._layers]).tolist()
         if self._reach_left[-1] + self._reach_right[-1] >= w:
             raise MonitorError(
                 f"a window of {w} frames is too short for incremental scoring of a CNN whose "
@@ -158,17 +158,15 @@ class IncrementalCNNScorer:
         t = self._t = self._t + 1
         z = (np.asarray(frame, dtype=np.float32).reshape(-1) - self._mean) / self._std
         self._put(0, t, z)
-        reach = 0  # the input's reach
         for level, layer in enumerate(self._layers, start=1):
             # this layer's value at time u needs level-1 values at u - left .. u + right, the
-            # newest of which (t - reach) has just arrived; it is clean once u - left reaches
-            # the first time that level holds (its own left reach)
-            u = t - reach - layer.right
-            if u - layer.left >= (self._reach_left[level - 2] if level > 1 else 0):
+            # newest of which (t minus that level's right reach) has just arrived; it exists
+            # once u - left reaches the first time that level holds (its left reach)
+            u = t - self._reach_right[level]
+            if u - layer.left >= self._reach_left[level - 1]:
                 start = (u - layer.left) % w
                 patch = self._rings[level - 1][start : start + layer.kernel].reshape(1, -1)
                 self._put(level, u, layer.apply(patch)[0])
-            reach += layer.right
 
     def _put(self, level: int, t: int, value: np.ndarray) -> None:
         ring, w = self._rings[level], self.constants.window_steps
@@ -188,10 +186,10 @@ class IncrementalCNNScorer:
             raise MonitorError(f"{self._t + 1} frames pushed; a score needs {w}")
         left_vals = np.zeros((0, self._rings[0].shape[1]), dtype=np.float32)  # level 0: none
         right_vals = left_vals
-        reach_l = reach_r = 0
         for level, layer in enumerate(self._layers, start=1):
             k_in = self._rings[level - 1].shape[1]
-            new_l, new_r = reach_l + layer.left, reach_r + layer.right
+            reach_l, new_l = self._reach_left[level - 1], self._reach_left[level]
+            reach_r, new_r = self._reach_right[level - 1], self._reach_right[level]
             # left end: positions 0 .. new_l - 1 read level-1 positions -left .. new_l-1+right
             below = np.concatenate([
                 np.zeros((layer.left, k_in), dtype=np.float32),
@@ -206,10 +204,10 @@ class IncrementalCNNScorer:
                 np.zeros((layer.right, k_in), dtype=np.float32),
             ])
             right_vals = layer.apply(_patches(below, layer.kernel))
-            reach_l, reach_r = new_l, new_r
         top = len(self._layers)
+        inner = self._span(top, self._reach_left[top], w - self._reach_right[top])
         total = (left_vals.sum(axis=0, dtype=np.float32)
-                 + self._span(top, reach_l, w - reach_r).sum(axis=0, dtype=np.float32)
+                 + inner.sum(axis=0, dtype=np.float32)
                  + right_vals.sum(axis=0, dtype=np.float32))  # fmt: skip
         pooled = total / np.float32(w)
         hidden = _gelu(self._w1 @ pooled + self._b1)
@@ -228,7 +226,6 @@ class IncrementalCNNScorer:
 def _patches(x: np.ndarray, kernel: int) -> np.ndarray:
     """Every run of ``kernel`` consecutive rows of ``x`` (n, c) as one row (n - k + 1, k * c)."""
     n, c = x.shape
-    view = np.lib.stride_tricks.as_strided(
-        x, shape=(n - kernel + 1, kernel * c), strides=(x.strides[0], x.strides[1])
-    )
-    return view
+    if n < kernel:  # an end the padding does not reach (e.g. the left end of an even kernel)
+        return np.zeros((0, kernel * c), dtype=x.dtype)
+    return np.lib.stride_tricks.sliding_window_view(x.reshape(-1), kernel * c)[::c]
