@@ -20,6 +20,11 @@ if config["creep_free"]["enabled"]:
     include: "workflow/rules/creep_free.smk"
 
 
+if config["sensing"]["robustness"]:
+
+    include: "workflow/rules/sensing.smk"
+
+
 include: "workflow/rules/report.smk"
 
 

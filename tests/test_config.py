@@ -86,8 +86,19 @@ def test_profiles_protocol_choices():
     # the tuned configurations and leaves the benchmark off
     assert study["sweep"]["configuration"] == "reference" and study["creep_free"]["enabled"]
     assert quick["sweep"]["configuration"] == "tuned" and not quick["creep_free"]["enabled"]
+    # the sensor-robustness study (issue 17): every profile runs it; quick at one seed, three
+    # strengths and one augmented family, the study at every seed and four strengths
+    assert all(c["sensing"]["robustness"] for c in (quick, study, thesis))
+    assert quick["sensing"]["seeds"] == [42] and quick["sensing"]["augment"]["families"] == ["lstm"]
+    assert {len(v) for v in quick["sensing"]["curves"].values()} == {3}
+    assert study["sensing"]["seeds"] is None and study["sensing"]["augment"]["seeds"] == [42]
+    assert {len(v) for v in study["sensing"]["curves"].values()} == {4}
+    assert study["sensing"]["augment"]["families"] == ["cnn", "gru", "lstm"]
     for cfg in (quick, study, thesis):
         validate_schema(cfg, SCHEMA)
+    bad = {**quick, "sensing": {**quick["sensing"], "curves": {"blur": [1.0]}}}
+    with pytest.raises(Exception, match="blur"):
+        validate_schema(bad, SCHEMA)
 
 
 def _compose(snakemake_config: dict) -> dict:

@@ -12,8 +12,8 @@ import graspstab
 # and nothing later. ``common`` is below everything; ``config`` checks object ids against the
 # asset catalogue, so it sits above ``assets``.
 STAGES = [
-    "common", "assets", "config", "objects", "hand", "synthesis", "replay", "labels", "learning",
-    "monitor", "report",
+    "common", "assets", "config", "objects", "hand", "synthesis", "replay", "labels", "sensing",
+    "learning", "monitor", "report",
 ]  # fmt: skip
 ROOT = Path(graspstab.__file__).resolve().parent
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import os
 import re
 import subprocess
@@ -11,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 from tests.conftest import REPO
 from tests.toy_workflow import (
@@ -199,8 +201,8 @@ def test_report_is_self_contained(run):
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
     # objects, hand x2, pre-grasp, gallery, histograms, replay, speeds, window + 11 learning
     # figures + the rule graph + the two speed figures of "Two protocols side by side" + the
-    # monitor's two figures under each protocol
-    assert len(images) == 9 + 11 + 1 + 2 + 2 + 2
+    # monitor's two figures under each protocol + the sensor-robustness curves
+    assert len(images) == 9 + 11 + 1 + 2 + 2 + 2 + 1
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -238,6 +240,7 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     alt = tmp_path / "alt"
     alt_config = _with(_with(config, TOY_REPLAY, ALT_REPLAY), TOY_CREEP_FREE,
                        "creep_free={enabled: false}")  # fmt: skip
+    alt_config.append("sensing={robustness: false}")
     proc = _snakemake(alt, "results/report.html", *alt_config, *ALTERNATIVES, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     log = (alt / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").read_text()
@@ -250,6 +253,8 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     assert speeds["box_creep"]["speed"] < 0.1 * speeds["v_slip"]  # strict: creep-free
     html = (alt / "results" / "report.html").read_text()
     assert "strict" in html and 'id="contact-model"' in html and 'id="unstable-speeds"' in html
+    assert "no sensor-robustness study" in html and 'id="sensing-curves"' not in html
+    assert not (alt / "results" / "studies" / "sensing").exists()
     index = pl.read_parquet(alt / "results" / "datasets" / "baseline" / "index.parquet")
     assert set(index["split"]) == {"train", "val", "test"}
     # the default run used the quick profile's choices: reference contact model, 0.25 rad squeeze
@@ -375,6 +380,29 @@ def test_monitor_exports_and_grasp_level_evaluation(run):
 
 
 @pytest.mark.workflow
+def test_sensor_robustness_study(run):
+    """Every condition (clean, each curve's strengths, each preset) reaches every baseline model
+    and the proxy; the report's section holds both tables and the curves."""
+    import polars as pl
+
+    workdir, _, _ = run
+    res = workdir / "results"
+    runs = pl.read_parquet(res / "studies" / "sensing" / "runs.parquet")
+    quick = yaml.safe_load((REPO / "config" / "profile" / "quick.yaml").read_text())["sensing"]
+    default = yaml.safe_load((REPO / "config" / "sensing" / "default.yaml").read_text())
+    n = 1 + sum(len(v) for v in quick["curves"].values()) + len(default["presets"])
+    assert runs.height == n * 4  # three families at seed 42, and the proxy
+    assert set(runs["family"]) == {"cnn", "gru", "lstm", "proxy"}
+    assert set(runs.filter(pl.col("kind") == "preset")["corruption"]) == set(default["presets"])
+    clean = runs.filter((pl.col("kind") == "clean") & (pl.col("family") == "proxy"))["auprc"][0]
+    proxy = json.loads((res / "studies" / "proxy.json").read_text())["test"]["auprc"]
+    assert clean == pytest.approx(proxy, abs=1e-9) or (math.isnan(clean) and math.isnan(proxy))
+    html = (res / "report.html").read_text()
+    section = html[html.index('id="sensing"') :]
+    assert "Test AUPRC (%) per corruption and strength" in section
+    assert "Test AUPRC (%) per sensor preset" in section and 'id="sensing-curves"' in section
+
+
 def test_learning_rate_change_reruns_that_model_only(run):
     workdir, env, config = run
     changed = [*config, "model={gru: {learning_rate: 0.002}}"]

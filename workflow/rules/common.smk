@@ -83,6 +83,50 @@ def replay_outputs(kind, root="results"):
     ]
 
 
+def replay_keys(root="results"):
+    """(object, shard) of every trace file of replay_outputs("traces"), in the same order."""
+    return [[o, k] for o in object_ids() for k in range(shards_of(config, o))]
+
+
+def sensing_seeds():
+    """The baseline seeds the sensor-robustness study scores (sensing.seeds, else every one)."""
+    return list(config["sensing"]["seeds"] or config["train"]["seeds"])
+
+
+def augmented_runs(name):
+    """The sensor-augmented training runs' files (sensing.augment's families x seeds)."""
+    aug = config["sensing"]["augment"]
+    return expand(
+        f"results/train/sensing/{{model}}/seed{{seed}}/{name}",
+        model=aug["families"],
+        seed=aug["seeds"] or sensing_seeds(),
+    )
+
+
+def augment_sensing():
+    """The part of the sensing group an augmented training reads (so that changing the scored
+    seeds or families reruns no training)."""
+    sensing = config["sensing"]
+    return {
+        **{k: sensing[k] for k in ("full_scale_n", "curves", "presets")},
+        "augment": {"clean_share": sensing["augment"]["clean_share"]},
+    }
+
+
+def augmented_keys():
+    """(family, seed, training) of every augmented run, in augmented_runs' order."""
+    aug = config["sensing"]["augment"]
+    return [
+        {"family": m, "seed": s, "training": "augmented"}
+        for m in aug["families"]
+        for s in aug["seeds"] or sensing_seeds()
+    ]
+
+
+# The sensor-robustness study's artefacts the report reads (set by sensing.smk when it runs).
+SENSING_ARTEFACTS = {}
+
+
 def object_splits():
     """The split of every object of the run (3.5.1)."""
     return {o: config["objects"]["items"][o]["split"] for o in object_ids()}

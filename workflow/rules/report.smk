@@ -98,6 +98,8 @@ rule report:
         **{f"monitor_{k}": v for k, v in MONITOR_ARTEFACTS.items()},
         # the creep-free benchmark's artefacts when it is enabled, named creep_free_<artefact>
         **{f"creep_free_{k}": v for k, v in CREEP_FREE_ARTEFACTS.items()},
+        # the sensor-robustness study's artefacts when it runs, named sensing_<artefact>
+        **{f"sensing_{k}": v for k, v in SENSING_ARTEFACTS.items()},
         rulegraph=rules.rulegraph.output.rules,
         jobgraph=rules.rulegraph.output.jobs,
     output:

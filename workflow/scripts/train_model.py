@@ -22,9 +22,12 @@ def compute() -> None:
         threads=sm.threads,
         checkpoint="checkpoint" in sm.output.keys(),
         extra=p.get("extra"),
+        augment=(
+            {**p["augment"], "trace_paths": list(sm.input.traces)} if "augment" in p else None
+        ),
         log_file=sm.log[0],
     )
 
 
 # Content-addressed: restored from the cache when the same job ran before (README, "Caching").
-run_cached(sm, ("learning",), compute)
+run_cached(sm, ("learning", "sensing") if "augment" in sm.params.keys() else ("learning",), compute)

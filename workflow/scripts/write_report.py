@@ -11,6 +11,7 @@ setup_logging(sm.log[0])
 PREFIX = "benchmark_"
 CREEP_FREE = "creep_free_"
 MONITOR = "monitor_"
+SENSING = "sensing_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -52,5 +53,9 @@ write_report(
     monitor={
         name.removeprefix(MONITOR): files for name, files in sm.input.items()
         if name.startswith(MONITOR)
+    },
+    sensing={
+        name.removeprefix(SENSING): files for name, files in sm.input.items()
+        if name.startswith(SENSING)
     },
 )

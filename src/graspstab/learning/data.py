@@ -8,7 +8,7 @@ those statistics from the new training objects, so no validation or test window 
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +35,9 @@ class WindowData:
     mean: np.ndarray  # (5, C) training-split mean per fingertip x channel
     std: np.ndarray  # (5, C) training-split std, floored
     source: Path
+    # raw training windows of the given rows in place of the stored ones (sensor augmentation,
+    # graspstab.learning.augmentation); None: the stored windows
+    augment: Callable[[np.ndarray], np.ndarray] | None = None
 
     @property
     def window_steps(self) -> int:
@@ -59,6 +62,15 @@ class WindowData:
         order = np.argsort(rows, kind="stable")
         raw = np.empty((len(rows), *self.windows.shape[1:]), dtype=np.float32)
         raw[order] = self.windows[rows[order]]
+        raw -= self.mean.astype(np.float32)
+        raw /= self.std.astype(np.float32)
+        return torch.from_numpy(raw)
+
+    def train_batch(self, rows: np.ndarray) -> torch.Tensor:
+        """A training batch: ``batch``, or the augmentation's windows of ``rows`` normalised."""
+        if self.augment is None:
+            return self.batch(rows)
+        raw = self.augment(rows)
         raw -= self.mean.astype(np.float32)
         raw /= self.std.astype(np.float32)
         return torch.from_numpy(raw)

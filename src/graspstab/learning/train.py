@@ -128,7 +128,7 @@ def train_epoch(
         batch = rows[i : i + settings.batch_size]
         if len(batch) < 2 and seen:
             continue
-        x = data.batch(batch).to(device, non_blocking=True)
+        x = data.train_batch(batch).to(device, non_blocking=True)
         y = torch.from_numpy(data.labels(batch)).to(device, non_blocking=True)
         optimiser.zero_grad(set_to_none=True)
         loss = loss_fn(model(x), y)

@@ -22,6 +22,7 @@ import torch
 from graspstab.common.io import atomic_path, write_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import code_version, compute_platform, stable_hash
+from graspstab.learning.augmentation import attach
 from graspstab.learning.data import WindowData, load_window_data
 from graspstab.learning.metrics import (
     METRIC_KEYS,
@@ -108,16 +109,23 @@ def train_model(
     threads: int = 1,
     checkpoint: bool = True,
     extra: Mapping[str, Any] | None = None,
+    augment: Mapping[str, Any] | None = None,
     log_file: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run the per-seed procedure and write its artefacts into ``out_dir``; return the metrics
-    (``extra`` keys, e.g. the split assignment's number, are stored with them)."""
+    (``extra`` keys, e.g. the split assignment's number, are stored with them). ``augment``
+    (sensing, trace_paths, trace_keys, dt) trains through the sensing group's sensors
+    (graspstab.learning.augmentation); validation and test stay clean."""
     setup_logging(log_file)
     torch.set_num_threads(max(1, int(threads)))
     out = Path(out_dir)
     params = {"model": dict(model_spec), "train": dict(train), "seed": int(seed),
               "assignment": dict(assignment) if assignment else None}  # fmt: skip
     data = load_window_data(dataset_dir, assignment)
+    if augment is not None:
+        params["augment"] = {k: augment[k] for k in ("sensing", "dt")}
+        attach(data, augment["sensing"], augment["trace_paths"], augment["trace_keys"],
+               float(augment["dt"]), int(seed))  # fmt: skip
     counts = {s: dict(zip(("stable", "unstable"), data.class_counts(s), strict=True))
               for s in ("train", "val", "test")}  # fmt: skip
     log.info("dataset %s: W=%d, %s", dataset_dir, data.window_steps, counts)

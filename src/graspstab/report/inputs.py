@@ -33,6 +33,9 @@ def benchmark_wildcards(
     creep_free_sweep = [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
     shards_cf = shards if config["creep_free"]["enabled"] else []
     models_cf = models if config["creep_free"]["enabled"] else []
+    sensing = config["sensing"]
+    augmented = list(sensing["augment"]["families"]) if sensing["robustness"] else []
+    augmented_seeds = sensing["augment"]["seeds"] or sensing["seeds"] or config["train"]["seeds"]
     return {
         "fetch_ycb_object": {"object": objects},
         "preprocess_object": {"object": objects},
@@ -51,6 +54,8 @@ def benchmark_wildcards(
         "train_sweep_model_creep_free": {
             "model": models_cf, "ms": creep_free_sweep, "seed": list(config["sweep"]["seeds"])
         },
+        # the sensor-augmented trainings (sensing.smk): none unless the robustness study runs
+        "train_augmented_model": {"model": augmented, "seed": list(augmented_seeds)},
         "train_split_model": {
             "model": [config["splits"]["family"]],
             "k": list(range(assignments)),

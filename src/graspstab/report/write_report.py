@@ -29,6 +29,7 @@ from graspstab.report.provenance import (
     read_benchmark,
     stage_times,
 )
+from graspstab.report.sensing import sensing_section
 
 log = logging.getLogger(__name__)
 REPO_DIR = Path(graspstab.__file__).resolve().parents[2]
@@ -481,6 +482,7 @@ def write_report(
     speeds_summary: Path | None = None,
     creep_free: Mapping[str, Any] | None = None,
     monitor: Mapping[str, Any] | None = None,
+    sensing: Mapping[str, Any] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
@@ -490,7 +492,8 @@ def write_report(
     creep-free benchmark's artefacts (rule report's ``creep_free_*`` inputs, prefix stripped),
     set beside the main run's in the section "Two protocols side by side". ``monitor``: the
     streaming monitor's artefacts (``monitor_*`` inputs, prefix stripped), the section
-    "Grasp-level warnings"."""
+    "Grasp-level warnings". ``sensing``: the sensor-robustness study's artefacts (``sensing_*``
+    inputs), the section "Sensor realism"."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -535,6 +538,7 @@ def write_report(
         *([learning_section(learning, learning_figures or {}, config)] if learning else []),
         monitor_section(monitor, creep_free if creep_free and "monitor_summary" in creep_free
                         else None),  # fmt: skip
+        sensing_section(sensing, config),
         *_protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_summaries,
                           learning, figures),  # fmt: skip
         *_provenance_parts(

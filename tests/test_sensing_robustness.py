@@ -1,0 +1,192 @@
+"""The sensor-robustness study on synthetic replays: segments end at the dataset's windows, the
+clean condition reproduces the clean evaluation, and each condition reaches every scorer."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+import torch
+import yaml
+from conftest import CONFIG_DIR
+
+from graspstab.common.io import save_npz
+from graspstab.labels.label_windows import label_windows, load_windows
+from graspstab.learning.data import load_window_data
+from graspstab.learning.metrics import binary_metrics
+from graspstab.learning.models import build_model
+from graspstab.learning.proxy import friction_ratio, proxy_metrics
+from graspstab.learning.robustness import conditions, evaluate_robustness
+from graspstab.replay.traces import trace_key
+from graspstab.sensing.segments import SegmentError, trace_map, window_segments
+
+LABELS = yaml.safe_load((CONFIG_DIR / "labels" / "default.yaml").read_text())
+SENSING = yaml.safe_load((CONFIG_DIR / "sensing" / "default.yaml").read_text())
+DT = 0.0005
+T = 6000  # 3 s
+
+
+def _trace(slip_at: int, rng: np.random.Generator) -> dict:
+    """Held still, then slipping at 5 mm/s from ``slip_at``; shear rises towards the slip."""
+    vel = np.zeros((T, 3), np.float32)
+    vel[slip_at:, 2] = -0.005
+    normal = (2 + rng.random((T, 5))).astype(np.float32)
+    ramp = np.clip(np.arange(T) / slip_at, 0, 1.5)[:, None]
+    shear = (normal * (0.1 + 0.5 * ramp) + 0.05 * rng.random((T, 5))).astype(np.float32)
+    return {"position": np.zeros((T, 3), np.float32), "velocity": vel,
+            "min_distance": np.full(T, -0.001, np.float32), "normal": normal,
+            "shear": shear}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> tuple[Path, list[str], list[tuple[str, int]]]:
+    root = tmp_path_factory.mktemp("sensing")
+    rng = np.random.default_rng(0)
+    replays, paths, keys = [], [], []
+    for obj, shard, grasps in (("a", 0, (0, 1)), ("b", 1, (3,)), ("c", 0, (5, 6))):
+        table = root / f"{obj}_{shard}.parquet"
+        pl.DataFrame([{"grasp_id": g, "object": obj, "shard": shard, "diverged": False}
+                      for g in grasps]).write_parquet(table)  # fmt: skip
+        traces = root / f"{obj}_{shard}.npz"
+        save_npz(traces, **{trace_key(g, c): v for g in grasps
+                            for c, v in _trace(2500 + 500 * g, rng).items()})  # fmt: skip
+        replays.append((table, traces))
+        paths.append(str(traces))
+        keys.append((obj, shard))
+    splits = {"a": "train", "b": "val", "c": "test"}
+    label_windows(replays, root / "ds", LABELS, splits, 0.05, DT, 0)
+    return root / "ds", paths, keys
+
+
+def test_segments_end_at_the_dataset_windows(dataset) -> None:
+    """The last W frames of every segment are the dataset's window; the context precedes it."""
+    ds, paths, keys = dataset
+    data = load_window_data(ds)
+    windows = load_windows(ds)
+    seg = window_segments(data.index, trace_map(paths, keys), data.window_steps, 37)
+    assert seg.shape == (len(windows), 37 + data.window_steps, 5, 2)
+    np.testing.assert_array_equal(seg[:, 37:], windows)
+    # the context is the trace's frames before the window (the windows start after settling)
+    row = data.index.filter(pl.col("start") >= 37).row(0, named=True)
+    with np.load(dict(zip(keys, paths, strict=True))[(row["object"], row["shard"])]) as npz:
+        normal = npz[trace_key(row["grasp_id"], "normal")]
+    np.testing.assert_array_equal(seg[row["sample_id"], :, :, 0],
+                                  normal[row["start"] - 37 : row["end"]])  # fmt: skip
+    with pytest.raises(SegmentError, match="no trace file"):
+        window_segments(data.index, {}, data.window_steps, 0)
+
+
+def test_clean_condition_reproduces_the_clean_evaluation(dataset, tmp_path: Path) -> None:
+    """Clean point = the model and proxy scored on the dataset's own windows; every condition
+    reaches every scorer; the same seed gives the same table."""
+    ds, paths, keys = dataset
+    data = load_window_data(ds)
+    torch.manual_seed(0)
+    spec = {"family": "cnn", "base_channels": 4, "kernel_sizes": [3, 3], "dropout": 0.0}
+    model = build_model(spec).eval()
+    ckpt = tmp_path / "model.pt"
+    torch.save({"state_dict": model.state_dict(), "model": spec,
+                "window_steps": data.window_steps, "mean": data.mean.tolist(),
+                "std": data.std.tolist()}, ckpt)  # fmt: skip
+    sensing = {**SENSING, "curves": {"noise": [0.5], "rate": [60], "drop": [0.5]},
+               "presets": {"slow": {"rate_hz": 100, "delay_s": 0.01}}}  # fmt: skip
+    args = (ds, paths, keys, [ckpt], [{"family": "cnn", "seed": 7}], sensing, DT, 0)
+    table = evaluate_robustness(*args, tmp_path / "r.parquet", tmp_path / "r.json")
+    assert table.height == len(conditions(sensing)) * 2
+    rows = data.rows("test")
+    y = data.labels(rows)
+    with torch.inference_mode():
+        logits = model(data.batch(rows)).double().numpy()
+    expect = binary_metrics(1 / (1 + np.exp(-logits)), y, 0.5, logits=logits)["auprc"]
+    clean = table.filter(pl.col("kind") == "clean")
+    got = dict(zip(clean["family"], clean["auprc"], strict=True))
+    assert got["cnn"] == pytest.approx(expect, abs=1e-6)
+    assert got["proxy"] == pytest.approx(
+        proxy_metrics(friction_ratio(load_windows(ds)[rows]), y)["auprc"], abs=1e-9
+    )
+    assert set(table["corruption"]) == {"none", "noise", "rate", "drop", "slow"}
+    assert table.filter(pl.col("family") == "cnn")["seed"].unique().to_list() == [7]
+    summary = json.loads((tmp_path / "r.json").read_text())
+    assert summary["n"] == len(rows) and summary["chance"] == pytest.approx(y.mean())
+    again = evaluate_robustness(*args, tmp_path / "s.parquet", tmp_path / "s.json")
+    assert again.equals(table)
+    # a strong noise changes the proxy's score (it reads one frame): the condition was applied
+    noisy = table.filter((pl.col("corruption") == "noise") & (pl.col("family") == "proxy"))
+    assert noisy["auprc"][0] != got["proxy"]
+
+
+def test_robustness_figure_draws_curves_and_says_when_undefined(tmp_path: Path) -> None:
+    """The figure is written for a defined table and for one whose AUPRC is undefined."""
+    from graspstab.learning.figures.robustness import plot_robustness
+
+    rows = [
+        {
+            "kind": "clean",
+            "corruption": "none",
+            "strength": 0.0,
+            "family": f,
+            "seed": 1,
+            "training": t,
+            "auprc": 0.9,
+        }
+        for f, t in (("cnn", "clean"), ("proxy", "none"))
+    ]
+    rows += [
+        {
+            "kind": "curve",
+            "corruption": c,
+            "strength": v,
+            "family": "cnn",
+            "seed": 1,
+            "training": "clean",
+            "auprc": 0.8,
+        }
+        for c, v in (("rate", 60.0), ("noise", 0.5))
+    ]
+    table = pl.DataFrame(rows)
+    assert plot_robustness(table, 0.5, tmp_path / "a.png").stat().st_size > 1000
+    undefined = table.with_columns(pl.lit(float("nan")).alias("auprc"))
+    assert plot_robustness(undefined, float("nan"), tmp_path / "b.png").exists()
+
+
+def test_augmentation_passes_training_windows_through_drawn_sensors(dataset) -> None:
+    """A pure delay sensor gives the trace d frames earlier, clean_share keeps that share clean,
+    and only training rows are accepted."""
+    from graspstab.learning.augmentation import SensorAugmentation
+    from graspstab.sensing.sensor_model import SensorModel
+
+    ds, paths, keys = dataset
+    data = load_window_data(ds)
+    rows = data.rows("train")
+    delay = SensorModel(delay_s=10 * DT)
+    aug = SensorAugmentation(data, [delay], trace_map(paths, keys), DT, seed=0)
+    out = aug(rows)
+    seg = window_segments(data.index[rows], trace_map(paths, keys), data.window_steps, 10)
+    np.testing.assert_array_equal(out, seg[:, : data.window_steps])  # 10 frames earlier
+    half = SensorAugmentation(data, [delay], trace_map(paths, keys), DT, seed=0, clean_share=0.5)
+    clean = (half(rows) == load_windows(ds)[rows]).all(axis=(1, 2, 3))
+    assert 0.3 < clean.mean() < 0.7
+    with pytest.raises(ValueError, match="training rows only"):
+        aug(data.rows("test"))
+    data.augment = aug
+    np.testing.assert_allclose(data.train_batch(rows[:3]).numpy(),
+                               (out[:3] - data.mean) / data.std, rtol=1e-5, atol=1e-5)  # fmt: skip
+
+
+def test_train_model_with_augmentation_records_it(dataset, tmp_path: Path) -> None:
+    """An augmented training runs end to end and stores the sensing settings with its params."""
+    from graspstab.learning.train_model import train_model
+
+    ds, paths, keys = dataset
+    spec = {"family": "cnn", "base_channels": 4, "kernel_sizes": [3], "dropout": 0.0,
+            "learning_rate": 1e-3}  # fmt: skip
+    train = yaml.safe_load((CONFIG_DIR / "train" / "default.yaml").read_text())
+    train.update(max_epochs=1, patience=1)
+    sensing = {**SENSING, "curves": {"noise": [0.5]}, "presets": {}}
+    record = train_model(ds, spec, train, 3, tmp_path / "run", augment={
+        "sensing": sensing, "trace_paths": paths, "trace_keys": keys, "dt": DT})  # fmt: skip
+    assert record["params"]["augment"]["sensing"]["curves"] == {"noise": [0.5]}
+    assert (tmp_path / "run" / "model.pt").exists()
