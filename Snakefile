@@ -25,6 +25,11 @@ if config["sensing"]["robustness"]:
     include: "workflow/rules/sensing.smk"
 
 
+if config["audit"]["enabled"]:
+
+    include: "workflow/rules/audit.smk"
+
+
 include: "workflow/rules/report.smk"
 
 

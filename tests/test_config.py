@@ -94,6 +94,10 @@ def test_profiles_protocol_choices():
     assert study["sensing"]["seeds"] is None and study["sensing"]["augment"]["seeds"] == [42]
     assert {len(v) for v in study["sensing"]["curves"].values()} == {4}
     assert study["sensing"]["augment"]["families"] == ["cnn", "gru", "lstm"]
+    # the input audit: quick on the LSTM at one seed, the study on every family at one seed
+    assert quick["audit"]["families"] == ["lstm"] and quick["audit"]["seeds"] == [42]
+    assert study["audit"]["families"] == ["cnn", "gru", "lstm"] and study["audit"]["seeds"] == [42]
+    assert thesis["audit"]["seeds"] is None and thesis["audit"]["enabled"]
     for cfg in (quick, study, thesis):
         validate_schema(cfg, SCHEMA)
     bad = {**quick, "sensing": {**quick["sensing"], "curves": {"blur": [1.0]}}}

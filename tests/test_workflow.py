@@ -240,7 +240,7 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     alt = tmp_path / "alt"
     alt_config = _with(_with(config, TOY_REPLAY, ALT_REPLAY), TOY_CREEP_FREE,
                        "creep_free={enabled: false}")  # fmt: skip
-    alt_config.append("sensing={robustness: false}")
+    alt_config += ["sensing={robustness: false}", "audit={enabled: false}"]
     proc = _snakemake(alt, "results/report.html", *alt_config, *ALTERNATIVES, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     log = (alt / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").read_text()
@@ -255,6 +255,7 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     assert "strict" in html and 'id="contact-model"' in html and 'id="unstable-speeds"' in html
     assert "no sensor-robustness study" in html and 'id="sensing-curves"' not in html
     assert not (alt / "results" / "studies" / "sensing").exists()
+    assert "no input audit" in html and not (alt / "results" / "studies" / "inputs").exists()
     index = pl.read_parquet(alt / "results" / "datasets" / "baseline" / "index.parquet")
     assert set(index["split"]) == {"train", "val", "test"}
     # the default run used the quick profile's choices: reference contact model, 0.25 rad squeeze
@@ -404,6 +405,25 @@ def test_sensor_robustness_study(run):
     section = html[html.index('id="sensing"') :]
     assert "Test AUPRC (%) per corruption and strength" in section
     assert "Test AUPRC (%) per sensor preset" in section and 'id="sensing-curves"' in section
+
+
+def test_input_audit(run):
+    """The quick profile's input audit: the LSTM on forces (the baseline run), normal, shear and
+    forces + object state, with 10, 5, 5 and 16 inputs; 16 give table 4.2's LSTM count."""
+    workdir, _, _ = run
+    res = workdir / "results"
+    info = json.loads((res / "studies" / "inputs" / "summary.json").read_text())
+    shapes = {r["input_set"]: r for r in info["shapes"] if r["family"] == "lstm"}
+    assert {k: v["inputs"] for k, v in shapes.items()} == {
+        "forces": 10, "normal": 5, "shear": 5, "object_state": 16}  # fmt: skip
+    assert shapes["object_state"]["parameters"] == 25_217  # table 4.2
+    assert shapes["forces"]["parameters"] == 23_681
+    forces = json.loads((res / "train" / "baseline" / "lstm" / "seed42" / "metrics.json")
+                        .read_text())["test"]["auprc"]  # fmt: skip
+    row = [r for r in info["summary"] if r["input_set"] == "forces" and r["split"] == "test"][0]
+    assert row["auprc_mean"] == pytest.approx(forces, nan_ok=True)
+    html = (res / "report.html").read_text()
+    assert 'id="input-audit"' in html and "Input audit: test AUPRC and parameters" in html
 
 
 def test_learning_rate_change_reruns_that_model_only(run):

@@ -123,6 +123,28 @@ def augmented_keys():
     ]
 
 
+def audit_runs():
+    """(input set, metrics.json) of every input-audit run: the baseline runs as "forces", then
+    each of audit.sets, for audit.families x audit.seeds (default: every training seed)."""
+    audit = config["audit"]
+    seeds = audit["seeds"] or config["train"]["seeds"]
+    out = [
+        ("forces", f"results/train/baseline/{m}/seed{s}/metrics.json")
+        for m in audit["families"]
+        for s in seeds
+    ]
+    return out + [
+        (i, f"results/train/inputs/{i}/{m}/seed{s}/metrics.json")
+        for i in audit["sets"]
+        for m in audit["families"]
+        for s in seeds
+    ]
+
+
+# The input audit's artefacts the report reads (set by audit.smk when it runs).
+AUDIT_ARTEFACTS = {}
+
+
 # The sensor-robustness study's artefacts the report reads (set by sensing.smk when it runs).
 SENSING_ARTEFACTS = {}
 

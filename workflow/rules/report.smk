@@ -100,6 +100,8 @@ rule report:
         **{f"creep_free_{k}": v for k, v in CREEP_FREE_ARTEFACTS.items()},
         # the sensor-robustness study's artefacts when it runs, named sensing_<artefact>
         **{f"sensing_{k}": v for k, v in SENSING_ARTEFACTS.items()},
+        # the input audit's table when it runs, named audit_<artefact>
+        **{f"audit_{k}": v for k, v in AUDIT_ARTEFACTS.items()},
         rulegraph=rules.rulegraph.output.rules,
         jobgraph=rules.rulegraph.output.jobs,
     output:

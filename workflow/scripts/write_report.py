@@ -12,6 +12,7 @@ PREFIX = "benchmark_"
 CREEP_FREE = "creep_free_"
 MONITOR = "monitor_"
 SENSING = "sensing_"
+AUDIT = "audit_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -51,11 +52,18 @@ write_report(
         if name.startswith(CREEP_FREE)
     },
     monitor={
-        name.removeprefix(MONITOR): files for name, files in sm.input.items()
+        name.removeprefix(MONITOR): files
+        for name, files in sm.input.items()
         if name.startswith(MONITOR)
     },
     sensing={
-        name.removeprefix(SENSING): files for name, files in sm.input.items()
+        name.removeprefix(SENSING): files
+        for name, files in sm.input.items()
         if name.startswith(SENSING)
+    },
+    audit={
+        name.removeprefix(AUDIT): files
+        for name, files in sm.input.items()
+        if name.startswith(AUDIT)
     },
 )

@@ -131,7 +131,9 @@ def train_model(
     log.info("dataset %s: W=%d, %s", dataset_dir, data.window_steps, counts)
     settings = TrainSettings.from_config(train, model_spec)
     torch.manual_seed(seed)
-    model = build_model(model_spec)
+    # the dataset's input layout: 5 fingertips x 2 channels, or an input set's 1 x F
+    inputs = {"fingertips": int(data.windows.shape[2]), "channels": int(data.windows.shape[3])}
+    model = build_model(model_spec, **inputs)
     n_params = count_parameters(model)
     log.info("%s: %d trainable parameters, %s", model_spec["family"], n_params, settings)
     result = fit(model, data, settings, seed)
@@ -142,6 +144,7 @@ def train_model(
         "family": model_spec["family"],
         "seed": int(seed),
         "parameters": n_params,
+        "inputs": inputs,
         "window_steps": data.window_steps,
         "dataset": str(dataset_dir),
         "counts": counts,
@@ -173,6 +176,7 @@ def train_model(
                     "state_dict": result.state_dict,
                     "model": dict(model_spec),
                     "window_steps": data.window_steps,
+                    "inputs": inputs,
                     "mean": data.mean.tolist(),
                     "std": data.std.tolist(),
                     "threshold": metrics["threshold"]["threshold"],

@@ -56,6 +56,14 @@ def benchmark_wildcards(
         },
         # the sensor-augmented trainings (sensing.smk): none unless the robustness study runs
         "train_augmented_model": {"model": augmented, "seed": list(augmented_seeds)},
+        # the input audit (audit.smk): none unless it is enabled
+        "label_input_set": {"inputs": list(config["audit"]["sets"])
+                            if config["audit"]["enabled"] else []},
+        "train_input_model": {
+            "inputs": list(config["audit"]["sets"]) if config["audit"]["enabled"] else [],
+            "model": list(config["audit"]["families"]),
+            "seed": list(config["audit"]["seeds"] or config["train"]["seeds"]),
+        },
         "train_split_model": {
             "model": [config["splits"]["family"]],
             "k": list(range(assignments)),

@@ -29,7 +29,7 @@ from graspstab.report.provenance import (
     read_benchmark,
     stage_times,
 )
-from graspstab.report.sensing import sensing_section
+from graspstab.report.sensing import audit_section, sensing_section
 
 log = logging.getLogger(__name__)
 REPO_DIR = Path(graspstab.__file__).resolve().parents[2]
@@ -483,6 +483,7 @@ def write_report(
     creep_free: Mapping[str, Any] | None = None,
     monitor: Mapping[str, Any] | None = None,
     sensing: Mapping[str, Any] | None = None,
+    audit: Mapping[str, Any] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
@@ -493,7 +494,7 @@ def write_report(
     set beside the main run's in the section "Two protocols side by side". ``monitor``: the
     streaming monitor's artefacts (``monitor_*`` inputs, prefix stripped), the section
     "Grasp-level warnings". ``sensing``: the sensor-robustness study's artefacts (``sensing_*``
-    inputs), the section "Sensor realism"."""
+    inputs), the section "Sensor realism"; ``audit``: the input audit's (``audit_*``)."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -539,6 +540,7 @@ def write_report(
         monitor_section(monitor, creep_free if creep_free and "monitor_summary" in creep_free
                         else None),  # fmt: skip
         sensing_section(sensing, config),
+        audit_section(audit),
         *_protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_summaries,
                           learning, figures),  # fmt: skip
         *_provenance_parts(

@@ -1,0 +1,7 @@
+"""Snakemake wrapper: the input audit's table (graspstab.learning.studies)."""
+
+from graspstab.learning import studies
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+studies.aggregate_inputs(list(sm.input.metrics), list(sm.params.input_sets), sm.params.out_dir,
+                         log_file=sm.log[0])  # fmt: skip
