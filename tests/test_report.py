@@ -557,11 +557,14 @@ def test_report_has_every_section_and_decodable_images(report_html: Path) -> Non
     images = _images(html)
     # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree),
     # + the monitor's two, + in the toy run (creep-free enabled) the two speed figures of "Two
-    # protocols side by side" and the monitor's two under the ramp
+    # protocols side by side" and the monitor's two under the ramp, + in the toy run the sensor
+    # robustness curves
     side_by_side = "This run has no creep-free benchmark" not in html
     assert side_by_side == ('id="protocols-speeds-ramp"' in html)
     assert side_by_side == ('id="monitor-timeline-ramp"' in html)
-    assert len(images) == 23 + 4 * side_by_side
+    sensing = "This run has no sensor-robustness study" not in html
+    assert sensing == ('id="sensing-curves"' in html) and 'id="sensing"' in html
+    assert len(images) == 23 + 4 * side_by_side + sensing
     for data in images:
         with Image.open(io.BytesIO(data)) as img:
             img.load()
