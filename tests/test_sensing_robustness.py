@@ -15,13 +15,14 @@ from conftest import CONFIG_DIR
 
 from graspstab.common.io import save_npz
 from graspstab.labels.label_windows import label_windows, load_windows
+from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
 from graspstab.learning.metrics import binary_metrics
 from graspstab.learning.models import build_model
 from graspstab.learning.proxy import friction_ratio, proxy_metrics
 from graspstab.learning.robustness import conditions, evaluate_robustness
 from graspstab.replay.traces import trace_key
-from graspstab.sensing.segments import SegmentError, trace_map, window_segments
+from graspstab.sensing.segments import SegmentError, window_segments
 
 LABELS = yaml.safe_load((CONFIG_DIR / "labels" / "default.yaml").read_text())
 SENSING = yaml.safe_load((CONFIG_DIR / "sensing" / "default.yaml").read_text())

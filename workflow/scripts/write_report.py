@@ -18,6 +18,13 @@ benchmarks = {
     for name, files in sm.input.items()
     if name.startswith(PREFIX)
 }
+
+
+def prefixed(prefix: str) -> dict:
+    """The rule's named inputs that start with ``prefix``, the prefix stripped."""
+    return {n.removeprefix(prefix): f for n, f in sm.input.items() if n.startswith(prefix)}
+
+
 write_report(
     out_html=Path(sm.output[0]),
     config=dict(sm.params.config),
@@ -46,24 +53,8 @@ write_report(
     rulegraph=Path(sm.input.rulegraph),
     jobgraph=Path(sm.input.jobgraph),
     speeds_summary=Path(sm.input.speeds_summary),
-    creep_free={
-        name.removeprefix(CREEP_FREE): files
-        for name, files in sm.input.items()
-        if name.startswith(CREEP_FREE)
-    },
-    monitor={
-        name.removeprefix(MONITOR): files
-        for name, files in sm.input.items()
-        if name.startswith(MONITOR)
-    },
-    sensing={
-        name.removeprefix(SENSING): files
-        for name, files in sm.input.items()
-        if name.startswith(SENSING)
-    },
-    audit={
-        name.removeprefix(AUDIT): files
-        for name, files in sm.input.items()
-        if name.startswith(AUDIT)
-    },
+    creep_free=prefixed(CREEP_FREE),
+    monitor=prefixed(MONITOR),
+    sensing=prefixed(SENSING),
+    audit=prefixed(AUDIT),
 )

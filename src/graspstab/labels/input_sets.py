@@ -33,7 +33,7 @@ from graspstab.common.io import (
     write_parquet,
 )
 from graspstab.labels.build_datasets import dataset_summary
-from graspstab.replay.traces import TraceFile
+from graspstab.labels.trace_windows import grasps_of
 
 FINGERTIPS = 5
 #: Each input set's trace channels: per-fingertip (T, 5) ones, then per-object (T, 3) ones.
@@ -71,24 +71,14 @@ def input_windows(
     tips, objects = _channels(input_set)
     width = FINGERTIPS * len(tips) + 3 * len(objects)
     out = np.empty((len(index), window_steps, 1, width), dtype=np.float32)
-    rows = index.with_row_index("_row")
-    for (obj, shard), group in rows.group_by(["object", "shard"], maintain_order=True):
-        key = (str(obj), int(shard))
-        if key not in traces:
-            raise InputSetError(f"object {obj!r} shard {shard}: no trace file among the inputs")
-        with TraceFile(traces[key]) as npz:
-            for gid, windows in group.group_by("grasp_id", maintain_order=True):
-                tr = npz.grasp(int(gid[0]), (*tips, *objects))
-                parts = [
-                    np.stack([tr[c] for c in tips], axis=-1).reshape(-1, FINGERTIPS * len(tips))
-                ]
-                parts += [tr[c].reshape(-1, 3) for c in objects]
-                feats = np.concatenate(parts, axis=1)  # (T, F), fingertip-major like eq. 19
-                idx = windows["start"].to_numpy()[:, None] + np.arange(window_steps)[None]
-                if idx.max() >= len(feats):
-                    raise InputSetError(f"object {obj!r} grasp {gid[0]}: a window ends after the "
-                                        "trace; rebuild the dataset")  # fmt: skip
-                out[windows["_row"].to_numpy(), :, 0] = feats[idx]
+    for rows, starts, tr, name in grasps_of(index, traces, (*tips, *objects), InputSetError):
+        parts = [np.stack([tr[c] for c in tips], axis=-1).reshape(-1, FINGERTIPS * len(tips))]
+        parts += [tr[c].reshape(-1, 3) for c in objects]
+        feats = np.concatenate(parts, axis=1)  # (T, F), fingertip-major like eq. 19
+        idx = starts[:, None] + np.arange(window_steps)[None]
+        if idx.max() >= len(feats):
+            raise InputSetError(f"{name}: a window ends after the trace; rebuild the dataset")
+        out[rows, :, 0] = feats[idx]
     return out
 
 

@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 
+from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import WindowData
 from graspstab.sensing.conditions import conditions
-from graspstab.sensing.segments import trace_map, window_segments
+from graspstab.sensing.segments import window_segments
 from graspstab.sensing.sensor_model import SensorModel, sense
 
 

@@ -19,15 +19,16 @@ import numpy as np
 import polars as pl
 import torch
 
-from graspstab.common.io import read_parquet, write_json, write_parquet
+from graspstab.common.io import write_json, write_parquet
 from graspstab.common.logs import setup_logging
+from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
 from graspstab.learning.metrics import binary_metrics
 from graspstab.learning.proxy import friction_ratio, proxy_metrics
 from graspstab.learning.studies import load_checkpoint
 from graspstab.learning.train import sigmoid
 from graspstab.sensing.conditions import conditions
-from graspstab.sensing.segments import trace_map, window_segments
+from graspstab.sensing.segments import window_segments
 from graspstab.sensing.sensor_model import sense
 
 log = logging.getLogger("graspstab.learning")
@@ -109,8 +110,3 @@ def summarise(table: pl.DataFrame, n: int, n_unstable: int) -> dict[str, Any]:
     return {"split": "test", "n": n, "n_unstable": n_unstable,
             "chance": n_unstable / n if n else float("nan"),
             "summary": summary.to_dicts()}  # fmt: skip
-
-
-def read_summary(path: str | Path) -> pl.DataFrame:
-    """The per-run robustness table (for the report and the figures)."""
-    return read_parquet(path)

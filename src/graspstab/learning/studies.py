@@ -195,8 +195,7 @@ def aggregate_inputs(
     runs = aggregate.run_rows(records, keys)
     summary = aggregate.mean_std(runs, ["input_set", "family", "split"])
     shapes = {
-        (s, r["family"]): {"inputs": int(np.prod(list((r.get("inputs") or
-                                                       {"f": 5, "c": 2}).values()))),
+        (s, r["family"]): {"inputs": r["inputs"]["fingertips"] * r["inputs"]["channels"],
                            "parameters": int(r["parameters"])}
         for s, r in zip(input_sets, records, strict=True)
     }  # fmt: skip

@@ -12,6 +12,7 @@ import polars as pl
 from graspstab.common.io import read_json, read_parquet
 from graspstab.learning.presentation import UNDEFINED, family_label, finite
 from graspstab.report import html as H
+from graspstab.report.learning_tables import REFERENCE_PARAMETERS
 
 ORDER = ("cnn", "gru", "lstm", "proxy")
 
@@ -108,8 +109,6 @@ AUDIT_LABELS = {
 
 def audit_section(audit: Mapping[str, Any] | None) -> str:
     """The input audit: test AUPRC and parameters per input set and family beside table 4.2."""
-    from graspstab.report.learning_tables import REFERENCE_PARAMETERS
-
     parts = [H.heading(3, "input-audit", "Input audit")]
     if not audit or "summary" not in audit:
         parts.append('<p class="note">This run has no input audit (audit.enabled is false).</p>')

@@ -10,7 +10,7 @@ import numpy as np
 import polars as pl
 
 from graspstab.labels.label_windows import CHANNELS
-from graspstab.replay.traces import TraceFile
+from graspstab.labels.trace_windows import grasps_of
 
 
 class SegmentError(ValueError):
@@ -29,29 +29,11 @@ def window_segments(
     shard's trace file."""
     length = context + window_steps
     out = np.empty((len(index), length, 5, len(CHANNELS)), dtype=np.float32)
-    rows = index.with_row_index("_row")
-    for (obj, shard), group in rows.group_by(["object", "shard"], maintain_order=True):
-        key = (str(obj), int(shard))
-        if key not in traces:
-            raise SegmentError(f"object {obj!r} shard {shard}: no trace file among the inputs "
-                               f"(have {sorted(traces)[:4]}...); rebuild the dataset")  # fmt: skip
-        with TraceFile(traces[key]) as npz:
-            for gid, windows in group.group_by("grasp_id", maintain_order=True):
-                tr = npz.grasp(int(gid[0]), CHANNELS)
-                feats = np.stack([tr[c] for c in CHANNELS], axis=-1)  # (T, 5, 2)
-                starts = windows["start"].to_numpy()
-                idx = starts[:, None] - context + np.arange(length)[None]
-                if idx.max() >= len(feats):
-                    raise SegmentError(
-                        f"object {obj!r} grasp {gid[0]}: a window ends after the "
-                        "trace; the dataset and traces disagree, rebuild them"
-                    )
-                out[windows["_row"].to_numpy()] = feats[np.clip(idx, 0, None)]
+    for rows, starts, tr, name in grasps_of(index, traces, CHANNELS, SegmentError):
+        feats = np.stack([tr[c] for c in CHANNELS], axis=-1)  # (T, 5, 2)
+        idx = starts[:, None] - context + np.arange(length)[None]
+        if idx.max() >= len(feats):
+            raise SegmentError(f"{name}: a window ends after the trace; the dataset and traces "
+                               "disagree, rebuild them")  # fmt: skip
+        out[rows] = feats[np.clip(idx, 0, None)]
     return out
-
-
-def trace_map(paths: list[str], keys: list[tuple[str, int]]) -> dict[tuple[str, int], str]:
-    """(object, shard) -> trace file, from the rule's parallel lists."""
-    if len(paths) != len(keys):
-        raise SegmentError(f"{len(paths)} trace files but {len(keys)} (object, shard) keys")
-    return {(str(o), int(k)): p for p, (o, k) in zip(paths, keys, strict=True)}
