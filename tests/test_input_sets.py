@@ -29,9 +29,12 @@ def _trace(slip_at: int, rng: np.random.Generator) -> dict:
     vel[slip_at:, 2] = -0.005
     pos = np.cumsum(vel, axis=0) * DT + rng.random(3).astype(np.float32)
     normal = (2 + rng.random((T, 5))).astype(np.float32)
+    angle = rng.random((T, 5)).astype(np.float32)
+    shear = (0.3 * normal + 0.1 * rng.random((T, 5))).astype(np.float32)
     return {"position": pos.astype(np.float32), "velocity": vel,
-            "min_distance": np.full(T, -0.001, np.float32), "normal": normal,
-            "shear": (0.3 * normal + 0.1 * rng.random((T, 5))).astype(np.float32)}  # fmt: skip
+            "min_distance": np.full(T, -0.001, np.float32), "normal": normal, "shear": shear,
+            "shear_distal": shear * np.cos(angle),
+            "shear_lateral": shear * np.sin(angle)}  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -54,10 +57,13 @@ def baseline(tmp_path_factory) -> tuple[Path, dict]:
 
 
 def test_feature_names_and_widths() -> None:
-    """forces 10, normal 5, shear 5, object_state 16, fingertip-major; unknown sets refused."""
-    assert [len(features(s)) for s in ("forces", "normal", "shear", "object_state")] == [
-        10, 5, 5, 16]  # fmt: skip
+    """forces 10, normal 5, shear 5, tangential 15, object_state 16, fingertip-major; unknown
+    sets refused."""
+    sets = ("forces", "normal", "shear", "tangential", "object_state")
+    assert [len(features(s)) for s in sets] == [10, 5, 5, 15, 16]
     assert features("forces")[:3] == ["normal_0", "shear_0", "normal_1"]
+    assert features("tangential")[:4] == ["normal_0", "shear_distal_0", "shear_lateral_0",
+                                          "normal_1"]  # fmt: skip
     assert features("object_state")[-6:] == ["position_x", "position_y", "position_z",
                                              "velocity_x", "velocity_y", "velocity_z"]  # fmt: skip
     with pytest.raises(InputSetError, match="unknown input set"):
@@ -77,6 +83,11 @@ def test_input_datasets_hold_the_baseline_windows_with_other_channels(baseline, 
         assert got.shape == (*base.shape[:2], 1, expect.shape[-1])
         np.testing.assert_array_equal(got[:, :, 0], expect)
         assert pl.read_parquet(tmp_path / name / "index.parquet").equals(index)
+    build_input_dataset(ds, traces, "tangential", tmp_path / "tan")
+    got = np.load(tmp_path / "tan" / "windows.npy").reshape(*base.shape[:2], 5, 3)
+    np.testing.assert_array_equal(got[..., 0], base[..., 0])  # the normal channel
+    # the two components' length is the magnitude channel (the synthetic traces' construction)
+    np.testing.assert_allclose(np.hypot(got[..., 1], got[..., 2]), base[..., 1], rtol=1e-5)
     summary = build_input_dataset(ds, traces, "object_state", tmp_path / "obj")
     got = np.load(tmp_path / "obj" / "windows.npy")
     np.testing.assert_array_equal(got[:, :, 0, :10], flat)

@@ -208,3 +208,118 @@ def test_reference_contacts_creep_at_the_order_of_the_instability_threshold() ->
     assert (c["cone"], c["impratio"], c["noslip_iterations"]) == ("pyramidal", 1.0, 0)
     assert box_creep(c, SQUEEZE, 3.0) > 0.0012
     assert box_creep(c, 0.3, 0.5) > 0.1
+
+
+# ---------------------------------------------------------------------------------------------
+# the shear's two fingertip-frame components (the input audit's 15-input set)
+
+
+def _world_tangential(model: mujoco.MjModel, data: mujoco.MjData, tip: int) -> np.ndarray:
+    """Brute force: each contact's force from mj_contactForce, rotated to the world by the
+    contact's frame, the fingertip's force on the object, its normal part removed; summed."""
+    obj = model.body("object").id
+    total, force = np.zeros(3), np.zeros(6)
+    for i in range(data.ncon):
+        c = data.contact[i]
+        b1, b2 = model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]
+        if {b1, b2} != {obj, tip}:
+            continue
+        mujoco.mj_contactForce(model, data, i, force)
+        frame = c.frame.reshape(3, 3)  # rows: normal (geom1 to geom2), tangents
+        on_geom2 = frame.T @ force[:3]
+        f = on_geom2 if b1 == tip else -on_geom2
+        total += f - (f @ frame[0]) * frame[0]
+    return total
+
+
+def _tilted_scene(anchor: str, gravity: np.ndarray) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The squeezed box with joint anchors that set the fingertips' long axis (their centre of
+    mass minus the anchor), under a given gravity."""
+    xml = SCENE.replace('axis="1 0 0"', f'axis="1 0 0" pos="{anchor}"').replace(
+        'axis="-1 0 0"', f'axis="-1 0 0" pos="{anchor}"'
+    )
+    spec = mujoco.MjSpec.from_string(xml)
+    add_replay_sensors(spec, TIPS, "hand", "object", 8)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    data.ctrl[:] = 0.05
+    for _ in range(400):
+        mujoco.mj_step(model, data)
+    model.opt.gravity[:] = gravity
+    return model, data
+
+
+def test_shear_components_equal_the_brute_force_tangential_force() -> None:
+    gravity = np.array([0.0, 3.0, -G])  # weight down and sideways: both components nonzero
+    model, data = _tilted_scene("0 0.004 -0.01", gravity)
+    layout = sensor_layout(model, tuple(TIPS), 8)
+    for step in range(1200):
+        mujoco.mj_step(model, data)
+        if step % 100:
+            continue
+        mujoco.mj_forward(model, data)
+        got = features(data.sensordata[None], layout)
+        for k, body in enumerate(TIPS.values()):
+            tip = model.body(body).id
+            t = _world_tangential(model, data, tip)
+            nrm = np.zeros(3)  # force-weighted mean normal from the contacts themselves
+            force = np.zeros(6)
+            for i in range(data.ncon):
+                c = data.contact[i]
+                if tip in (model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]):
+                    mujoco.mj_contactForce(model, data, i, force)
+                    sign = 1.0 if model.geom_bodyid[c.geom1] == tip else -1.0
+                    nrm += abs(force[0]) * sign * c.frame[:3]
+            nrm /= np.linalg.norm(nrm)
+            axis = data.xmat[tip].reshape(3, 3) @ layout.distal[k]
+            e1 = axis - (axis @ nrm) * nrm
+            e1 /= np.linalg.norm(e1)
+            want = [t @ e1, t @ np.cross(nrm, e1)]
+            have = [got["shear_distal"][0, k], got["shear_lateral"][0, k]]
+            np.testing.assert_allclose(have, want, rtol=1e-9, atol=1e-9)
+            # one contact plane: the vector's length is eq. 18's sum of magnitudes
+            assert np.hypot(*have) == pytest.approx(got["shear"][0, k], rel=1e-6, abs=1e-9)
+
+
+def test_shear_components_of_a_held_box_carry_its_weight_along_the_finger() -> None:
+    """Fingertips whose long axis points up (anchor below the centre of mass): the weight is
+    carried distally, half per fingertip, nothing laterally; a sideways pull shows laterally."""
+    model, data = _tilted_scene("0 0 -0.01", np.array([0.0, 0.0, -G]))
+    layout = sensor_layout(model, tuple(TIPS), 8)
+    np.testing.assert_allclose(layout.distal, [[0, 0, 1], [0, 0, 1]], atol=1e-12)
+    rows = []
+    for _ in range(3000):
+        mujoco.mj_step(model, data)
+        rows.append(data.sensordata.copy())
+    f = features(np.array(rows[-1000:]), layout)
+    np.testing.assert_allclose(f["shear_distal"].mean(0), MASS * G / 2, rtol=0.05)
+    np.testing.assert_allclose(f["shear_lateral"].mean(0), 0.0, atol=1e-3)
+    # the same box pulled along +y as well, so the fingertips push it along -y: tip a's lateral
+    # axis is n x distal = x x z = -y, tip b's (-x) x z = +y
+    model.opt.gravity[:] = (0.0, 2.0, -G)
+    rows = []
+    for _ in range(3000):
+        mujoco.mj_step(model, data)
+        rows.append(data.sensordata.copy())
+    f = features(np.array(rows[-1000:]), layout)
+    lateral = f["shear_lateral"].mean(0)
+    assert lateral[0] == pytest.approx(MASS * 2.0 / 2, rel=0.1)
+    assert lateral[1] == pytest.approx(-MASS * 2.0 / 2, rel=0.1)
+
+
+def test_shear_components_are_zero_without_contact_and_use_the_spare_axis_end_on() -> None:
+    model, data = _tilted_scene("0 0 0", np.array([0.0, 0.0, -G]))  # long axis = body x = normal
+    layout = sensor_layout(model, tuple(TIPS), 8)
+    free = features(np.zeros((1, model.nsensordata)), layout)
+    assert not free["shear_distal"].any() and not free["shear_lateral"].any()
+    rows = []
+    for _ in range(3000):
+        mujoco.mj_step(model, data)
+        rows.append(data.sensordata.copy())
+    f = features(np.array(rows[-1000:]), layout)
+    # the long axis is end-on (parallel to the normal): the spare axis (x cross y = z) takes its
+    # place, so the weight still shows, and the components keep eq. 18's magnitude
+    np.testing.assert_allclose(np.abs(f["shear_distal"]).mean(0), MASS * G / 2, rtol=0.05)
+    np.testing.assert_allclose(
+        np.hypot(f["shear_distal"], f["shear_lateral"]), f["shear"], rtol=1e-6, atol=1e-9
+    )

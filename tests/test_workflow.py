@@ -408,14 +408,15 @@ def test_sensor_robustness_study(run):
 
 
 def test_input_audit(run):
-    """The quick profile's input audit: the LSTM on forces (the baseline run), normal, shear and
-    forces + object state, with 10, 5, 5 and 16 inputs; 16 give table 4.2's LSTM count."""
+    """The quick profile's input audit: the LSTM on forces (the baseline run), normal, shear,
+    normal + the shear's two components and forces + object state, with 10, 5, 5, 15 and 16
+    inputs; 16 give table 4.2's LSTM count."""
     workdir, _, _ = run
     res = workdir / "results"
     info = json.loads((res / "studies" / "inputs" / "summary.json").read_text())
     shapes = {r["input_set"]: r for r in info["shapes"] if r["family"] == "lstm"}
     assert {k: v["inputs"] for k, v in shapes.items()} == {
-        "forces": 10, "normal": 5, "shear": 5, "object_state": 16}  # fmt: skip
+        "forces": 10, "normal": 5, "shear": 5, "tangential": 15, "object_state": 16}  # fmt: skip
     assert shapes["object_state"]["parameters"] == 25_217  # table 4.2
     assert shapes["forces"]["parameters"] == 23_681
     forces = json.loads((res / "train" / "baseline" / "lstm" / "seed42" / "metrics.json")

@@ -4,7 +4,7 @@
 
 
 wildcard_constraints:
-    inputs="normal|shear|object_state",
+    inputs="normal|shear|tangential|object_state",
 
 
 rule label_input_set:

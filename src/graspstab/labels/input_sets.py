@@ -7,6 +7,8 @@ configurations on:
 
 * ``forces``: eq. 19's 5 fingertips x (normal, shear), 10 inputs (the baseline dataset itself);
 * ``normal`` and ``shear``: one of the two channels, 5 inputs;
+* ``tangential``: the normal force and the shear's two fingertip-frame components instead of its
+  magnitude (``shear_distal``, ``shear_lateral``; graspstab.replay.sensors), 15 inputs;
 * ``object_state``: the forces plus the object's position and linear velocity, 16 inputs. The
   labels are computed from that velocity (eq. 23), so this set is a leakage control: a model
   that sees it should do better than any force-only model, and by how much says how much of
@@ -41,6 +43,7 @@ INPUT_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "forces": (("normal", "shear"), ()),
     "normal": (("normal",), ()),
     "shear": (("shear",), ()),
+    "tangential": (("normal", "shear_distal", "shear_lateral"), ()),
     "object_state": (("normal", "shear"), ("position", "velocity")),
 }
 

@@ -4,14 +4,24 @@ Reading contacts in Python every step would cost more than the step itself, so t
 sensors to the model and lets ``mujoco.rollout`` fill ``sensordata``:
 
 * per fingertip, a contact sensor between the fingertip body and the object with ``slots``
-  contact slots of (count, normal, tangent 1, tangent 2), the contact-frame force that
-  ``mj_contactForce`` returns (normal first);
+  contact slots of (count, contact-frame force, normal, first tangent axis): the force is what
+  ``mj_contactForce`` returns (normal first), the two axes place it in the world frame;
+* per fingertip, the body frame's orientation (quaternion), for the fingertip-fixed tangent
+  basis of the shear's two components (below);
 * one contact sensor between the whole hand (subtree of its root) and the object, reduced to the
   smallest signed distance (count, dist): d_t of 3.2, undefined when the count is 0;
 * the object's position and linear velocity (body origin = centre of mass, 3.1.1).
 
 :func:`features` turns a block of sensordata rows into the trace channels: eq. (18) sums
-``|N|`` and ``sqrt(A^2 + B^2)`` over a fingertip's contacts.
+``|N|`` and ``sqrt(A^2 + B^2)`` over a fingertip's contacts. It also resolves each fingertip's
+shear *vector* into two components (``shear_distal``, ``shear_lateral``; the input audit's
+15-input set, our extension): a contact's (A, B) are in its own contact frame, whose tangent axes
+MuJoCo picks per contact, so summing A and B across contacts means nothing. Instead each contact's
+tangential force goes to the world frame and is summed; the sum is projected on a basis of the
+plane normal to the fingertip's force-weighted mean contact normal, the first axis the finger's
+long (distal) axis in that plane, the second ``normal x distal``. That is what a fingertip-fixed
+three-axis sensor reports, and its magnitude equals eq. (18)'s shear when the contacts' shears
+are parallel.
 """
 
 from __future__ import annotations
@@ -22,7 +32,8 @@ import mujoco
 import numpy as np
 
 # dataspec bits of the contact sensor (MuJoCo's mjtConDataField order) and its reductions
-_FOUND, _FORCE, _DIST = 1, 2, 8
+_FOUND, _FORCE, _DIST, _NORMAL, _TANGENT = 1, 2, 8, 32, 64
+_SLOT = 10  # count, force (3), normal (3), tangent (3): the bits' order
 _REDUCE_NONE, _REDUCE_MINDIST = 0, 1
 
 
@@ -32,7 +43,10 @@ class SensorLayout:
 
     fingertips: tuple[str, ...]  # finger names, eq. (19) order
     slots: int  # contact slots per fingertip sensor
-    tip_start: tuple[int, ...]  # first column of each fingertip sensor (slots x 4 values)
+    tip_start: tuple[int, ...]  # first column of each fingertip sensor (slots x 10 values)
+    quat_start: tuple[int, ...]  # each fingertip body's orientation (w, x, y, z)
+    distal: np.ndarray  # (fingertips, 3) each fingertip's long axis, its body frame, unit
+    lateral: np.ndarray  # (fingertips, 3) a body-frame unit axis normal to ``distal``
     dist_start: int  # (count, dist) of the hand-object sensor
     pos_start: int  # object position (3)
     vel_start: int  # object linear velocity (3)
@@ -54,7 +68,13 @@ def add_replay_sensors(
             objname=body,
             reftype=mujoco.mjtObj.mjOBJ_BODY,
             refname=object_body,
-            intprm=[_FOUND | _FORCE, _REDUCE_NONE, int(slots)],
+            intprm=[_FOUND | _FORCE | _NORMAL | _TANGENT, _REDUCE_NONE, int(slots)],
+        )
+        spec.add_sensor(
+            name=f"replay_quat_{finger}",
+            type=mujoco.mjtSensor.mjSENS_FRAMEQUAT,
+            objtype=mujoco.mjtObj.mjOBJ_XBODY,
+            objname=body,
         )
     spec.add_sensor(
         name="replay_hand_dist",
@@ -72,6 +92,20 @@ def add_replay_sensors(
         spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_BODY, objname=object_body)
 
 
+def finger_axes(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray]:
+    """A fingertip body's long axis in its frame (joint anchor to centre of mass, the body's x
+    axis when they coincide) and a unit axis normal to it (the spare for end-on contacts)."""
+    ipos = model.body_ipos[body]
+    anchor = model.jnt_pos[model.body_jntadr[body]] if model.body_jntnum[body] else np.zeros(3)
+    distal = ipos - anchor
+    if np.linalg.norm(distal) < 1e-9:
+        distal = np.array([1.0, 0.0, 0.0])
+    distal = distal / np.linalg.norm(distal)
+    spare = np.eye(3)[int(np.argmin(np.abs(distal)))]
+    lateral = np.cross(distal, spare)
+    return distal, lateral / np.linalg.norm(lateral)
+
+
 def sensor_layout(model: mujoco.MjModel, fingers: tuple[str, ...], slots: int) -> SensorLayout:
     """Column offsets of the sensors :func:`add_replay_sensors` added to the compiled ``model``."""
 
@@ -81,32 +115,76 @@ def sensor_layout(model: mujoco.MjModel, fingers: tuple[str, ...], slots: int) -
             raise ValueError(f"sensor {name!r} has dimension {model.sensor_dim[sid]}, not {dim}")
         return int(model.sensor_adr[sid])
 
+    bodies = [int(model.sensor_objid[model.sensor(f"replay_quat_{f}").id]) for f in fingers]
+    axes = [finger_axes(model, b) for b in bodies]
     return SensorLayout(
         fingertips=tuple(fingers),
         slots=int(slots),
-        tip_start=tuple(start(f"replay_tip_{f}", 4 * slots) for f in fingers),
+        tip_start=tuple(start(f"replay_tip_{f}", _SLOT * slots) for f in fingers),
+        quat_start=tuple(start(f"replay_quat_{f}", 4) for f in fingers),
+        distal=np.array([a[0] for a in axes]).reshape(-1, 3),
+        lateral=np.array([a[1] for a in axes]).reshape(-1, 3),
         dist_start=start("replay_hand_dist", 2),
         pos_start=start("replay_object_pos", 3),
         vel_start=start("replay_object_vel", 3),
     )
 
 
+def rotate(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Body-frame vector ``v (3,)`` in the world frame for unit quaternions ``quat (T, 4)``."""
+    w, q = quat[:, :1], quat[:, 1:]
+    c = np.cross(q, np.broadcast_to(v, q.shape))
+    return v + 2.0 * w * c + 2.0 * np.cross(q, c)
+
+
+def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(norm > 0, norm, 1.0), norm[..., 0]
+
+
+def shear_components(
+    block: np.ndarray, quat: np.ndarray, distal: np.ndarray, lateral: np.ndarray
+) -> np.ndarray:
+    """``(T, 2)`` (distal, lateral) components of one fingertip's summed tangential force.
+
+    ``block (T, slots, 10)`` is its contact sensor's slots, ``quat (T, 4)`` its orientation. The
+    force is the fingertip's on the object; rows without contact give zeros."""
+    f, n, t = block[..., 1:4], block[..., 4:7], block[..., 7:10]
+    used = block[..., :1] > 0  # empty slots are zeros already; the count guards the axes
+    world_t = (f[..., 1:2] * t + f[..., 2:3] * np.cross(n, t)) * used
+    tangential = world_t.sum(axis=1)
+    normal, weight = _unit((np.abs(f[..., :1]) * n * used).sum(axis=1))
+    out = np.zeros((len(block), 2))
+    for axis in (lateral, distal):  # distal where it lies in the plane, else the spare axis
+        a = rotate(quat, axis)
+        e1, size = _unit(a - (a * normal).sum(axis=1, keepdims=True) * normal)
+        ok = (size > 0.2) & (weight > 0)
+        e2 = np.cross(normal, e1)
+        out[ok] = np.stack([(tangential * e1).sum(1), (tangential * e2).sum(1)], axis=1)[ok]
+    return out
+
+
 def features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarray]:
     """Trace channels of sensordata rows ``(T, nsensordata)``.
 
     Returns ``position (T, 3)``, ``velocity (T, 3)``, ``min_distance (T,)`` (NaN without any
-    hand-object contact), ``normal`` and ``shear (T, 5)`` (eq. 18, fingertip order of eq. 19) and
-    ``overflow (T,)``: the largest number of a fingertip's contacts that did not fit the slots.
+    hand-object contact), ``normal`` and ``shear (T, 5)`` (eq. 18, fingertip order of eq. 19),
+    ``shear_distal`` and ``shear_lateral (T, 5)`` (:func:`shear_components`) and ``overflow
+    (T,)``: the largest number of a fingertip's contacts that did not fit the slots.
     """
     rows = np.asarray(sensordata, dtype=np.float64)
     n = len(rows)
     normal = np.empty((n, len(layout.fingertips)))
     shear = np.empty_like(normal)
+    distal, lateral = np.empty_like(normal), np.empty_like(normal)
     overflow = np.zeros(n, dtype=np.int64)
     for k, a in enumerate(layout.tip_start):
-        block = rows[:, a : a + 4 * layout.slots].reshape(n, layout.slots, 4)
+        block = rows[:, a : a + _SLOT * layout.slots].reshape(n, layout.slots, _SLOT)
         normal[:, k] = np.abs(block[..., 1]).sum(axis=1)
         shear[:, k] = np.hypot(block[..., 2], block[..., 3]).sum(axis=1)
+        q = rows[:, layout.quat_start[k] : layout.quat_start[k] + 4]
+        comp = shear_components(block, q, layout.distal[k], layout.lateral[k])
+        distal[:, k], lateral[:, k] = comp[:, 0], comp[:, 1]
         overflow = np.maximum(overflow, block[:, 0, 0].astype(np.int64) - layout.slots)
     count = rows[:, layout.dist_start]
     dist = np.where(count > 0, rows[:, layout.dist_start + 1], np.nan)
@@ -116,5 +194,7 @@ def features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarr
         "min_distance": dist,
         "normal": normal,
         "shear": shear,
+        "shear_distal": distal,
+        "shear_lateral": lateral,
         "overflow": np.maximum(overflow, 0),
     }

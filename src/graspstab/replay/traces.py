@@ -15,8 +15,11 @@ import numpy as np
 
 from graspstab.common.io import reading
 
-# Everything a replay records per time step (object frame): position, velocity, d_t, eq. 18 forces.
-CHANNELS = ("position", "velocity", "min_distance", "normal", "shear")
+# Everything a replay records per time step (object frame): position, velocity, d_t, eq. 18 forces
+# and the shear's two fingertip-frame components (graspstab.replay.sensors.shear_components).
+CHANNELS = (
+    "position", "velocity", "min_distance", "normal", "shear", "shear_distal", "shear_lateral",
+)  # fmt: skip
 # The external force of the load-ramp protocol (object frame) [N]; absent under gravity alone.
 LOAD = "load"
 

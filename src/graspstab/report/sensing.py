@@ -103,6 +103,7 @@ AUDIT_LABELS = {
     "forces": "forces (5 × normal, shear; the text's inputs)",
     "normal": "normal only",
     "shear": "shear only",
+    "tangential": "normal + shear's two fingertip-frame components",
     "object_state": "forces + object position, velocity (leakage control)",
 }
 
