@@ -24,6 +24,10 @@ if config["sensing"]["robustness"]:
 
     include: "workflow/rules/sensing.smk"
 
+    if config["sensing"]["pick_window"]:
+
+        include: "workflow/rules/sensing_pick.smk"
+
 
 if config["audit"]["enabled"]:
 

@@ -103,6 +103,13 @@ def test_profiles_protocol_choices():
     bad = {**quick, "sensing": {**quick["sensing"], "curves": {"blur": [1.0]}}}
     with pytest.raises(Exception, match="blur"):
         validate_schema(bad, SCHEMA)
+    # augmentation through the mixture by default (per-corruption runs are one override away),
+    # and the latency-aware window scored under the sensors in every profile
+    assert all(c["sensing"]["augment"]["modes"] == ["mixture"] for c in (quick, study, thesis))
+    assert all(c["sensing"]["pick_window"] for c in (quick, study, thesis))
+    aug = {**quick["sensing"]["augment"], "modes": ["mixture", "blur"]}
+    with pytest.raises(Exception, match="blur"):
+        validate_schema({**quick, "sensing": {**quick["sensing"], "augment": aug}}, SCHEMA)
 
 
 def _compose(snakemake_config: dict) -> dict:

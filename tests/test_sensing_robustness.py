@@ -191,3 +191,79 @@ def test_train_model_with_augmentation_records_it(dataset, tmp_path: Path) -> No
         "sensing": sensing, "trace_paths": paths, "trace_keys": keys, "dt": DT})  # fmt: skip
     assert record["params"]["augment"]["sensing"]["curves"] == {"noise": [0.5]}
     assert (tmp_path / "run" / "model.pt").exists()
+
+
+def test_augmentation_modes_draw_from_the_mixture_or_one_curve() -> None:
+    """The mixture draws every curve strength and preset; a corruption's mode its curve only;
+    a mode naming no curve is refused with the fix; labels tell the modes apart."""
+    from graspstab.learning.augmentation import augmentation_sensors
+    from graspstab.sensing.conditions import training_label
+
+    curves = sum(len(v) for v in SENSING["curves"].values())
+    assert len(augmentation_sensors(SENSING)) == curves + len(SENSING["presets"])
+    rate = augmentation_sensors(SENSING, "rate")
+    assert [s.rate_hz for s in rate] == [float(v) for v in SENSING["curves"]["rate"]]
+    assert {s.noise for s in rate} == {0.0}  # nothing but the rate
+    with pytest.raises(ValueError, match="names no curve"):
+        augmentation_sensors({**SENSING, "curves": {"noise": [0.1]}}, "drift")
+    assert training_label("mixture") == "augmented"
+    assert training_label("drift") == "augmented:drift"
+
+
+def _summary_rows() -> list[dict]:
+    rows = []
+    for kind, corruption, strength in (
+        ("clean", "none", 0.0),
+        ("curve", "noise", 0.5),
+        ("curve", "rate", 60.0),
+        ("preset", "vision_60hz", None),
+    ):
+        for family, training, auprc in (
+            ("lstm", "clean", 0.9),
+            ("lstm", "augmented", 0.8),
+            ("lstm", "augmented:noise", 0.7),
+            ("lstm", "augmented:rate", 0.6),
+            ("proxy", "none", 0.5),
+        ):
+            rows.append({"kind": kind, "corruption": corruption,
+                         "strength": float("nan") if strength is None else strength,
+                         "family": family, "training": training, "auprc_mean": auprc,
+                         "auprc_std": 0.0, "runs": 1})  # fmt: skip
+    return rows
+
+
+def test_condition_table_puts_each_corruption_model_on_its_own_rows() -> None:
+    from graspstab.report.sensing import condition_table
+
+    headers, rows = condition_table(_summary_rows(), ("clean", "curve"))
+    assert headers == ["condition", "strength", "LSTM", "LSTM (through sensors)",
+                       "LSTM (through this corruption)", "proxy"]  # fmt: skip
+    by = {r[0]: r for r in rows}
+    assert by["noise"][2:] == ["90.0", "80.0", "70.0", "50.0"]
+    assert by["rate"][2:] == ["90.0", "80.0", "60.0", "50.0"]
+    assert by["clean (simulator)"][4] == "n/a"  # no single "own" model on the clean row
+    _, only = condition_table(_summary_rows(), ("clean", "curve", "preset"), ("rate",))
+    assert [r[0] for r in only] == ["clean (simulator)", "rate", "vision_60hz"]
+
+
+def test_robustness_figure_draws_a_corruption_model_in_its_panel_only(tmp_path: Path) -> None:
+    from graspstab.learning.figures import robustness
+
+    table = pl.DataFrame([{**{k: r[k] for k in ("kind", "corruption", "strength", "family",
+                                                 "training")}, "seed": 1, "auprc": r["auprc_mean"]}
+                          for r in _summary_rows() if r["kind"] != "preset"])  # fmt: skip
+    drawn = {}
+    original = robustness.plt.Axes.errorbar
+
+    def spy(ax, *args, **kwargs):
+        drawn.setdefault(ax.get_title() or id(ax), []).append(kwargs["label"])
+        return original(ax, *args, **kwargs)
+
+    robustness.plt.Axes.errorbar = spy
+    try:
+        robustness.plot_robustness(table, 0.5, tmp_path / "c.png")
+    finally:
+        robustness.plt.Axes.errorbar = original
+    labels = [sorted(v) for v in drawn.values()]
+    assert sorted(["LSTM", "LSTM (through sensors)", "LSTM (this corruption)", "proxy"]) in labels
+    assert sum(v.count("LSTM (this corruption)") for v in labels) == 2  # one per panel

@@ -383,7 +383,8 @@ def test_monitor_exports_and_grasp_level_evaluation(run):
 @pytest.mark.workflow
 def test_sensor_robustness_study(run):
     """Every condition (clean, each curve's strengths, each preset) reaches every baseline model
-    and the proxy; the report's section holds both tables and the curves."""
+    and the proxy, and the sweep models at the monitor's window; the report's section holds the
+    tables and the curves; each augmentation mode is a run of its own."""
     import polars as pl
 
     workdir, _, _ = run
@@ -405,6 +406,18 @@ def test_sensor_robustness_study(run):
     section = html[html.index('id="sensing"') :]
     assert "Test AUPRC (%) per corruption and strength" in section
     assert "Test AUPRC (%) per sensor preset" in section and 'id="sensing-curves"' in section
+    # the same conditions at the monitor's 0.01 s window: each family's sweep model, the proxy
+    pick = pl.read_parquet(res / "studies" / "sensing" / "pick" / "runs.parquet")
+    assert pick.height == n * 4 and set(pick["seed"]) == {42, -1}
+    assert (pick.select("kind", "corruption").unique().height
+            == runs.select("kind", "corruption").unique().height)  # fmt: skip
+    assert "Test AUPRC (%) at the 0.01 s window" in section
+    # one augmented run per mode (sensing.augment.modes): a corruption's mode adds its own run
+    workdir, env, config = run
+    jobs = _dry_jobs(workdir, [*config, "sensing={augment: {modes: [mixture, rate]}}"], env)
+    aug = [j["wildcards"] for j in jobs if j["rule"] == "train_augmented_model"]
+    assert aug == [{"mode": "rate", "model": "lstm", "seed": "42"}]  # the mixture's is done
+    assert "evaluate_sensor_robustness" in {j["rule"] for j in jobs}
 
 
 def test_input_audit(run):

@@ -5,6 +5,7 @@ from pathlib import Path
 
 from graspstab.common.units import ms_of
 from graspstab.learning.splits import sample_assignments
+from graspstab.sensing.conditions import training_label
 
 from graspstab.config import ConfigError, load_config, shards_of
 
@@ -94,22 +95,27 @@ def sensing_seeds():
 
 
 def augmented_runs(name):
-    """The sensor-augmented training runs' files (sensing.augment's families x seeds)."""
+    """The sensor-augmented training runs' files (sensing.augment's modes x families x seeds)."""
     aug = config["sensing"]["augment"]
     return expand(
-        f"results/train/sensing/{{model}}/seed{{seed}}/{name}",
+        f"results/train/sensing/{{mode}}/{{model}}/seed{{seed}}/{name}",
+        mode=aug["modes"],
         model=aug["families"],
         seed=aug["seeds"] or sensing_seeds(),
     )
 
 
-def augment_sensing():
-    """The part of the sensing group an augmented training reads (so that changing the scored
-    seeds or families reruns no training)."""
+def augment_sensing(mode):
+    """The part of the sensing group an augmented training of ``mode`` reads (so that changing
+    the scored seeds or families reruns no training): the mixture reads every curve and preset,
+    a corruption's mode its own curve only."""
     sensing = config["sensing"]
+    mixture = mode == "mixture"
     return {
-        **{k: sensing[k] for k in ("full_scale_n", "curves", "presets")},
-        "augment": {"clean_share": sensing["augment"]["clean_share"]},
+        "full_scale_n": sensing["full_scale_n"],
+        "curves": sensing["curves"] if mixture else {mode: sensing["curves"].get(mode, [])},
+        "presets": sensing["presets"] if mixture else {},
+        "augment": {"clean_share": sensing["augment"]["clean_share"], "mode": mode},
     }
 
 
@@ -117,10 +123,23 @@ def augmented_keys():
     """(family, seed, training) of every augmented run, in augmented_runs' order."""
     aug = config["sensing"]["augment"]
     return [
-        {"family": m, "seed": s, "training": "augmented"}
+        {"family": m, "seed": s, "training": training_label(mode)}
+        for mode in aug["modes"]
         for m in aug["families"]
         for s in aug["seeds"] or sensing_seeds()
     ]
+
+
+def pick_seeds():
+    """The sweep seeds the pick-window robustness scores: the scored baseline seeds the sweep
+    also trained, else its first."""
+    sweep = list(config["sweep"]["seeds"])
+    return [s for s in sensing_seeds() if s in sweep] or sweep[:1]
+
+
+def pick_runs(name):
+    """Each family's sweep runs at the monitor's window (4.5's latency-aware pick), pick_seeds."""
+    return sweep_runs(name, pick_seeds(), windows_ms=[ms_of(config["monitor"]["window_s"])])
 
 
 def audit_runs():

@@ -4,21 +4,25 @@
 # (the forces before each window, for the delay and the hold) and the baseline checkpoints.
 
 
+wildcard_constraints:
+    mode="mixture|noise|gain|drift|quantisation|rate|delay|drop",
+
+
 rule train_augmented_model:
     input:
         **dataset_inputs("results/datasets/baseline"),
         traces=replay_outputs("traces"),
     output:
-        **run_outputs("results/train/sensing/{model}/seed{seed}"),
+        **run_outputs("results/train/sensing/{mode}/{model}/seed{seed}"),
     params:
         spec=lambda wc: config["model"][wc.model],
         train=config["train"],
-        augment={
-            "sensing": augment_sensing(),
+        augment=lambda wc: {
+            "sensing": augment_sensing(wc.mode),
             "trace_keys": replay_keys(),
             "dt": config["replay"]["timestep"],
         },
-        extra={"training": "augmented"},
+        extra=lambda wc: {"training": training_label(wc.mode)},
     conda:
         CONDA_ENV
     threads: 1
@@ -26,9 +30,9 @@ rule train_augmented_model:
         mem_mb=3000,
         runtime=120,
     log:
-        "results/logs/train_augmented_model/{model}_seed{seed}.log",
+        "results/logs/train_augmented_model/{mode}_{model}_seed{seed}.log",
     benchmark:
-        "results/benchmarks/train_augmented_model/{model}_seed{seed}.tsv"
+        "results/benchmarks/train_augmented_model/{mode}_{model}_seed{seed}.tsv"
     script:
         "../scripts/train_model.py"
 

@@ -1,7 +1,10 @@
 """Sensor augmentation for training (our extension): each training window, every epoch, comes
-through one sensor condition drawn at random from the robustness study's (a corruption at one of
-its strengths, or a preset), so a model sees what a real sensor would deliver. Validation and
-test windows stay clean: epochs are selected as in 3.5.2."""
+through one sensor condition drawn at random from the robustness study's, so a model sees what a
+real sensor would deliver. Validation and test windows stay clean: epochs are selected as in 3.5.2.
+
+Two readings of "trained with the corruption as augmentation" (``sensing.augment.modes``):
+``mixture`` draws from every curve's strengths and every preset (one model for all sensors); a
+corruption's name draws from that curve's strengths only (one model per corruption)."""
 
 from __future__ import annotations
 
@@ -12,7 +15,7 @@ import numpy as np
 
 from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import WindowData
-from graspstab.sensing.conditions import conditions
+from graspstab.sensing.conditions import MIXTURE, conditions
 from graspstab.sensing.segments import window_segments
 from graspstab.sensing.sensor_model import SensorModel, sense
 
@@ -62,16 +65,26 @@ class SensorAugmentation:
         return out
 
 
-def augmentation_sensors(sensing: Mapping[str, Any]) -> list[SensorModel]:
-    """Every non-clean condition of the robustness study (curves and presets)."""
-    return [c["sensor"] for c in conditions(sensing) if c["kind"] != "clean"]
+def augmentation_sensors(sensing: Mapping[str, Any], mode: str = MIXTURE) -> list[SensorModel]:
+    """The conditions a mode draws from: every non-clean one of the study (curves and presets)
+    for ``mixture``, else the named corruption's curve."""
+    conds = [c for c in conditions(sensing) if c["kind"] != "clean"]
+    if mode != MIXTURE:
+        conds = [c for c in conds if c["kind"] == "curve" and c["corruption"] == mode]
+        if not conds:
+            raise ValueError(
+                f"sensing.augment.modes: {mode!r} names no curve of sensing.curves (curves: "
+                f"{list(sensing['curves'])}); add its strengths there or use {MIXTURE!r}"
+            )
+    return [c["sensor"] for c in conds]
 
 
 def attach(data: WindowData, sensing: Mapping[str, Any], trace_paths: Sequence[str],
            trace_keys: Sequence[tuple[str, int]], dt: float, seed: int) -> WindowData:  # fmt: skip
     """``data`` with its training batches augmented by the study's sensors."""
+    mode = str(sensing["augment"].get("mode", MIXTURE))
     data.augment = SensorAugmentation(
-        data, augmentation_sensors(sensing), trace_map(list(trace_paths), list(trace_keys)), dt,
-        seed, float(sensing["augment"]["clean_share"]),
+        data, augmentation_sensors(sensing, mode), trace_map(list(trace_paths), list(trace_keys)),
+        dt, seed, float(sensing["augment"]["clean_share"]),
     )  # fmt: skip
     return data

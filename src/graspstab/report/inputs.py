@@ -55,7 +55,10 @@ def benchmark_wildcards(
             "model": models_cf, "ms": creep_free_sweep, "seed": list(config["sweep"]["seeds"])
         },
         # the sensor-augmented trainings (sensing.smk): none unless the robustness study runs
-        "train_augmented_model": {"model": augmented, "seed": list(augmented_seeds)},
+        "train_augmented_model": {
+            "mode": list(sensing["augment"]["modes"]), "model": augmented,
+            "seed": list(augmented_seeds),
+        },
         # the input audit (audit.smk): none unless it is enabled
         "label_input_set": {"inputs": list(config["audit"]["sets"])
                             if config["audit"]["enabled"] else []},

@@ -27,26 +27,42 @@ def _label(family: str) -> str:
     return "proxy" if family == "proxy" else family_label(family)
 
 
-def condition_table(summary: list[dict[str, Any]], kinds: tuple[str, ...]) -> tuple[list, list]:
-    """Headers and rows: one row per condition of ``kinds``, test AUPRC (%) per scorer."""
+#: Column suffix per training: clean-trained, the mixture's augmentation, and "own": the model
+#: trained through the row's own corruption (sensing.augment.modes naming corruptions).
+TRAININGS = {"clean": "", "none": "", "augmented": " (through sensors)",
+             "own": " (through this corruption)"}  # fmt: skip
+OWN = "augmented:"
+
+
+def condition_table(
+    summary: list[dict[str, Any]], kinds: tuple[str, ...], corruptions: tuple[str, ...] = ()
+) -> tuple[list, list]:
+    """Headers and rows: one row per condition of ``kinds`` (curves: of ``corruptions`` only,
+    when given), test AUPRC (%) per scorer; a per-corruption model fills its own curve's rows."""
     frame = pl.DataFrame(summary, infer_schema_length=None).filter(pl.col("kind").is_in(kinds))
+    if corruptions:
+        frame = frame.filter((pl.col("kind") != "curve") | pl.col("corruption").is_in(corruptions))
+    trained = set(zip(frame["family"].to_list(), frame["training"].to_list(), strict=True))
     scorers = [
         (f, t)
         for f in ORDER
-        for t in ("clean", "none", "augmented")
-        if len(frame.filter((pl.col("family") == f) & (pl.col("training") == t)))
+        for t in TRAININGS
+        if (f, t) in trained or (t == "own" and any(
+            g == f and str(s).startswith(OWN) for g, s in trained))  # fmt: skip
     ]
-    headers = ["condition", "strength",
-               *[_label(f) + (" (through sensors)" if t == "augmented" else "")
-                 for f, t in scorers]]  # fmt: skip
+    headers = ["condition", "strength", *[_label(f) + TRAININGS[t] for f, t in scorers]]
     rows = []
     for key, group in frame.group_by(["kind", "corruption", "strength"], maintain_order=True):
         cells = {(r["family"], r["training"]): r for r in group.iter_rows(named=True)}
+        own = f"{OWN}{key[1]}"
         strength = "" if not finite(key[2]) or key[0] != "curve" else f"{key[2]:g}"
-        rows.append([key[1] if key[0] != "clean" else "clean (simulator)", strength,
-                     *[_pct(cells[s]["auprc_mean"],
-                          cells[s]["auprc_std"] if cells[s]["runs"] > 1 else None) if s in cells
-                       else UNDEFINED for s in scorers]])  # fmt: skip
+        row = [key[1] if key[0] != "clean" else "clean (simulator)", strength]
+        for f, t in scorers:
+            cell = cells.get((f, own if t == "own" else t))
+            std = cell["auprc_std"] if cell is not None and cell["runs"] > 1 else None
+            missing = "n/a" if t == "own" else UNDEFINED  # no model of that row's own corruption
+            row.append(missing if cell is None else _pct(cell["auprc_mean"], std))
+        rows.append(row)
     return headers, rows
 
 
@@ -73,7 +89,9 @@ def sensing_section(sensing: Mapping[str, Any] | None, config: Mapping[str, Any]
         f"{', '.join(map(str, seeds))} (mean ± std over seeds). Columns marked 'through "
         "sensors' are the same configuration trained with every training window, every "
         "epoch, through one condition drawn at random (clean with probability "
-        f"{float(config['sensing']['augment']['clean_share']):g}); validation stays clean. "
+        f"{float(config['sensing']['augment']['clean_share']):g}); validation stays clean; "
+        "'through this corruption' (when sensing.augment.modes names corruptions) is a model "
+        "trained through that row's corruption only, at its curve's strengths. "
         "Noise and drift are in units of "
         "each channel's training std, the converter spans "
         f"±{float(config['sensing']['full_scale_n']):g} N.</p>"
@@ -83,7 +101,8 @@ def sensing_section(sensing: Mapping[str, Any] | None, config: Mapping[str, Any]
     if "figure" in sensing:
         parts.append(H.image(Path(sensing["figure"]), "sensor robustness curves",
                              "Test AUPRC against each corruption's strength (solid: trained on "
-                             "the simulator's forces; dashed: trained through the sensors); the "
+                             "the simulator's forces; dashed: trained through the sensors; "
+                             "dash-dot: through that corruption only); the "
                              "clean point sits at each curve's 'off' end (2 kHz for the rate, 4 "
                              "bits above the finest converter); dotted: chance.", "sensing-curves",
                              "Sensor robustness curves"))  # fmt: skip
@@ -96,7 +115,23 @@ def sensing_section(sensing: Mapping[str, Any] | None, config: Mapping[str, Any]
          for name, values in presets.items()],
         caption="Sensor presets (illustrative settings, not any datasheet's)", cls="text",
     ))  # fmt: skip
+    if "pick_summary" in sensing:
+        parts.append(pick_table(read_json(Path(sensing["pick_summary"])), config))
     return "\n".join(parts)
+
+
+def pick_table(info: Mapping[str, Any], config: Mapping[str, Any]) -> str:
+    """The sweep models at the monitor's window under the rate curve and the presets."""
+    window = float(config["monitor"]["window_s"])
+    headers, rows = condition_table(info["summary"], ("clean", "curve", "preset"), ("rate",))
+    note = (f"<p>The same conditions at the streaming monitor's window ({window:g} s, 4.5's "
+            "latency-aware pick): each family's sweep models at that window (mean ± std over the "
+            "scored seeds the sweep trained), on that dataset's test windows "
+            f"({info['n']}, {info['n_unstable']} unstable, chance {_pct(info['chance'])} %). "
+            f"The window spans {60 * window:.2g} sample periods of a 60 Hz sensor: under the "
+            "hold it shows one or two distinct values.</p>")  # fmt: skip
+    return note + H.table(headers, rows, caption=(
+        f"Test AUPRC (%) at the {window:g} s window: the sampling-rate curve and the presets"))
 
 
 AUDIT_LABELS = {

@@ -8,6 +8,15 @@ from typing import Any
 
 from graspstab.sensing.sensor_model import CORRUPTIONS, SensorModel
 
+#: The augmentation mode that draws from every curve and preset (sensing.augment.modes).
+MIXTURE = "mixture"
+
+
+def training_label(mode: str) -> str:
+    """The ``training`` value an augmentation mode's runs carry in the robustness tables:
+    ``augmented`` for the mixture, ``augmented:<corruption>`` for one corruption's curve."""
+    return "augmented" if mode == MIXTURE else f"augmented:{mode}"
+
 
 def conditions(sensing: Mapping[str, Any]) -> list[dict[str, Any]]:
     """The study's conditions in order: the clean sensor, each curve's strengths, the presets.

@@ -1,5 +1,5 @@
 """Sensor robustness figure (our extension): test AUPRC of each family and the proxy against each
-corruption's strength, one panel per corruption, the chance level dashed."""
+corruption's strength, one panel per corruption, the chance level dotted."""
 
 from __future__ import annotations
 
@@ -36,13 +36,16 @@ def plot_robustness(runs: pl.DataFrame, chance: float, path: Path, dpi: int = 11
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), squeeze=False)
     for ax in axes.flat[len(names) :]:
         ax.set_visible(False)
+    # a model trained through one corruption only (training "augmented:<name>") in its panel
+    own = pl.col("training").str.starts_with("augmented:")
     for ax, name in zip(axes.flat, names, strict=False):
-        part = curves.filter(pl.col("corruption") == name)
+        mine = ~own | (pl.col("training") == f"augmented:{name}")
+        part = curves.filter((pl.col("corruption") == name) & mine)
         # the clean point sits where the strength is "off": 0, or above the strongest for
         # bits and rate (more bits, faster sampling is cleaner)
         off = {"quantisation": part["strength"].max() + 4, "rate": 2000.0}.get(name, 0.0)
         drawn = 0
-        for (family, training), group in pl.concat([part, clean.with_columns(
+        for (family, training), group in pl.concat([part, clean.filter(mine).with_columns(
                 pl.lit(name).alias("corruption"), pl.lit(off).alias("strength"))]).group_by(
                 ["family", "training"], maintain_order=True):  # fmt: skip
             stats = group.group_by("strength").agg(
@@ -54,10 +57,12 @@ def plot_robustness(runs: pl.DataFrame, chance: float, path: Path, dpi: int = 11
             if not np.isfinite(m).any():  # AUPRC undefined (a class missing from the split)
                 continue
             drawn += 1
-            style = "-" if training in ("clean", "none") else "--"
+            style = {"clean": "-", "none": "-", "augmented": "--"}.get(training, "-.")
             label = "proxy" if family == "proxy" else family_label(family)
-            if training not in ("clean", "none"):
-                label += f" ({training})"
+            if training == "augmented":
+                label += " (through sensors)"
+            elif training not in ("clean", "none"):
+                label += " (this corruption)"
             ax.errorbar(
                 x,
                 100 * m,
