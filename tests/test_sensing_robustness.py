@@ -267,3 +267,29 @@ def test_robustness_figure_draws_a_corruption_model_in_its_panel_only(tmp_path: 
     labels = [sorted(v) for v in drawn.values()]
     assert sorted(["LSTM", "LSTM (through sensors)", "LSTM (this corruption)", "proxy"]) in labels
     assert sum(v.count("LSTM (this corruption)") for v in labels) == 2  # one per panel
+
+
+def test_audit_table_lists_the_leakage_control_last(tmp_path: Path) -> None:
+    """Whatever order the aggregate holds, the rows follow the input sets' order (forces first,
+    object state last, as the section's text says), with each set's width and parameters."""
+    from graspstab.report.sensing import audit_section
+
+    sets = {"object_state": 16, "forces": 10, "tangential": 15, "normal": 5}
+    summary = [{"input_set": s, "family": "lstm", "split": "test", "auprc_mean": 0.9,
+                "auprc_std": 0.0, "auprc_n": 1} for s in sets]  # fmt: skip
+    shapes = [{"input_set": s, "family": "lstm", "inputs": w, "parameters": 1000 + w}
+              for s, w in sets.items()]  # fmt: skip
+    path = tmp_path / "summary.json"
+    path.write_text(json.dumps({"summary": summary, "shapes": shapes}))
+    html = audit_section({"summary": str(path)})
+    at = [
+        html.index(label)
+        for label in (
+            "5 × normal, shear",
+            "normal only",
+            "two fingertip-frame components",
+            "velocity (leakage control)",
+        )
+    ]
+    assert at == sorted(at)
+    assert "1,016" in html and "1,015" in html

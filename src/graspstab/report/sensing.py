@@ -153,7 +153,9 @@ def audit_section(audit: Mapping[str, Any] | None) -> str:
     summary = pl.DataFrame(info["summary"], infer_schema_length=None)
     shapes = {(r["input_set"], r["family"]): r for r in info["shapes"]}
     families = [f for f in ORDER if f in set(summary["family"])]
-    sets = list(dict.fromkeys(summary["input_set"].to_list()))
+    order = list(AUDIT_LABELS)  # the leakage control last, as the text says
+    sets = sorted(dict.fromkeys(summary["input_set"].to_list()),
+                  key=lambda s: order.index(s) if s in order else len(order))  # fmt: skip
     rows = []
     for s in sets:
         width = next((shapes[(s, f)]["inputs"] for f in families if (s, f) in shapes), None)
