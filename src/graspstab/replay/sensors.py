@@ -12,7 +12,8 @@ sensors to the model and lets ``mujoco.rollout`` fill ``sensordata``:
   smallest signed distance (count, dist): d_t of 3.2, undefined when the count is 0;
 * the object's position and linear velocity (body origin = centre of mass, 3.1.1).
 
-:func:`features` turns a block of sensordata rows into the trace channels: eq. (18) sums
+:func:`features` turns a block of sensordata rows into the trace channels (the replay computes
+the force channels, :func:`force_features`, over many chunks at once): eq. (18) sums
 ``|N|`` and ``sqrt(A^2 + B^2)`` over a fingertip's contacts. It also resolves each fingertip's
 shear *vector* into two components (``shear_distal``, ``shear_lateral``; the input audit's
 15-input set, our extension): a contact's (A, B) are in its own contact frame, whose tangent axes
@@ -131,9 +132,10 @@ def sensor_layout(model: mujoco.MjModel, fingers: tuple[str, ...], slots: int) -
 
 
 def rotate(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Body-frame vector ``v (3,)`` in the world frame for unit quaternions ``quat (T, 4)``."""
-    w, q = quat[:, :1], quat[:, 1:]
-    c = np.cross(q, np.broadcast_to(v, q.shape))
+    """Body-frame vectors ``v (..., 3)`` in the world frame for unit quaternions ``quat (..., 4)``
+    (w, x, y, z), broadcast against each other."""
+    w, q = quat[..., :1], quat[..., 1:]
+    c = np.cross(q, v)
     return v + 2.0 * w * c + 2.0 * np.cross(q, c)
 
 
@@ -145,56 +147,61 @@ def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def shear_components(
     block: np.ndarray, quat: np.ndarray, distal: np.ndarray, lateral: np.ndarray
 ) -> np.ndarray:
-    """``(T, 2)`` (distal, lateral) components of one fingertip's summed tangential force.
+    """``(..., 2)`` (distal, lateral) components of fingertips' summed tangential forces.
 
-    ``block (T, slots, 10)`` is its contact sensor's slots, ``quat (T, 4)`` its orientation. The
-    force is the fingertip's on the object; rows without contact give zeros."""
+    ``block (..., slots, 10)`` is a fingertip contact sensor's slots, ``quat (..., 4)`` the
+    fingertip's orientation, ``distal`` and ``lateral (..., 3)`` its body-frame axes; leading
+    axes broadcast (e.g. time x fingertip). The force is the fingertip's on the object; rows
+    without contact give zeros."""
     f, n, t = block[..., 1:4], block[..., 4:7], block[..., 7:10]
     used = block[..., :1] > 0  # empty slots are zeros already; the count guards the axes
-    world_t = (f[..., 1:2] * t + f[..., 2:3] * np.cross(n, t)) * used
-    tangential = world_t.sum(axis=1)
-    normal, weight = _unit((np.abs(f[..., :1]) * n * used).sum(axis=1))
-    out = np.zeros((len(block), 2))
+    tangential = ((f[..., 1:2] * t + f[..., 2:3] * np.cross(n, t)) * used).sum(axis=-2)
+    normal, weight = _unit((np.abs(f[..., :1]) * n * used).sum(axis=-2))
+    out = np.zeros((*tangential.shape[:-1], 2))
     for axis in (lateral, distal):  # distal where it lies in the plane, else the spare axis
         a = rotate(quat, axis)
-        e1, size = _unit(a - (a * normal).sum(axis=1, keepdims=True) * normal)
+        e1, size = _unit(a - (a * normal).sum(axis=-1, keepdims=True) * normal)
         ok = (size > 0.2) & (weight > 0)
         e2 = np.cross(normal, e1)
-        out[ok] = np.stack([(tangential * e1).sum(1), (tangential * e2).sum(1)], axis=1)[ok]
+        both = np.stack([(tangential * e1).sum(-1), (tangential * e2).sum(-1)], axis=-1)
+        out[ok] = both[ok]
     return out
 
 
 def features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarray]:
-    """Trace channels of sensordata rows ``(T, nsensordata)``.
+    """Trace channels of sensordata rows ``(T, nsensordata)``: :func:`motion_features` and
+    :func:`force_features` together."""
+    return {**motion_features(sensordata, layout), **force_features(sensordata, layout)}
 
-    Returns ``position (T, 3)``, ``velocity (T, 3)``, ``min_distance (T,)`` (NaN without any
-    hand-object contact), ``normal`` and ``shear (T, 5)`` (eq. 18, fingertip order of eq. 19),
-    ``shear_distal`` and ``shear_lateral (T, 5)`` (:func:`shear_components`) and ``overflow
-    (T,)``: the largest number of a fingertip's contacts that did not fit the slots.
-    """
+
+def motion_features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarray]:
+    """``position (T, 3)``, ``velocity (T, 3)`` and ``min_distance (T,)`` (NaN without any
+    hand-object contact): what the replay's stop rules and the load ramp read every chunk."""
     rows = np.asarray(sensordata, dtype=np.float64)
-    n = len(rows)
-    normal = np.empty((n, len(layout.fingertips)))
-    shear = np.empty_like(normal)
-    distal, lateral = np.empty_like(normal), np.empty_like(normal)
-    overflow = np.zeros(n, dtype=np.int64)
-    for k, a in enumerate(layout.tip_start):
-        block = rows[:, a : a + _SLOT * layout.slots].reshape(n, layout.slots, _SLOT)
-        normal[:, k] = np.abs(block[..., 1]).sum(axis=1)
-        shear[:, k] = np.hypot(block[..., 2], block[..., 3]).sum(axis=1)
-        q = rows[:, layout.quat_start[k] : layout.quat_start[k] + 4]
-        comp = shear_components(block, q, layout.distal[k], layout.lateral[k])
-        distal[:, k], lateral[:, k] = comp[:, 0], comp[:, 1]
-        overflow = np.maximum(overflow, block[:, 0, 0].astype(np.int64) - layout.slots)
     count = rows[:, layout.dist_start]
-    dist = np.where(count > 0, rows[:, layout.dist_start + 1], np.nan)
     return {
         "position": rows[:, layout.pos_start : layout.pos_start + 3],
         "velocity": rows[:, layout.vel_start : layout.vel_start + 3],
-        "min_distance": dist,
-        "normal": normal,
-        "shear": shear,
-        "shear_distal": distal,
-        "shear_lateral": lateral,
+        "min_distance": np.where(count > 0, rows[:, layout.dist_start + 1], np.nan),
+    }
+
+
+def force_features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarray]:
+    """``normal`` and ``shear (T, 5)`` (eq. 18, fingertip order of eq. 19), ``shear_distal`` and
+    ``shear_lateral (T, 5)`` (:func:`shear_components`) and ``overflow (T,)``: the largest number
+    of a fingertip's contacts that did not fit the slots."""
+    rows = np.asarray(sensordata, dtype=np.float64)
+    n, tips, slots = len(rows), len(layout.fingertips), layout.slots
+    # every fingertip at once (a replay under the load ramp calls this on short chunks)
+    cols = np.asarray(layout.tip_start)[:, None] + np.arange(_SLOT * slots)[None]
+    block = rows[:, cols].reshape(n, tips, slots, _SLOT)
+    quat = rows[:, np.asarray(layout.quat_start)[:, None] + np.arange(4)[None]]
+    comp = shear_components(block, quat, layout.distal, layout.lateral)
+    overflow = (block[:, :, 0, 0].astype(np.int64) - slots).max(axis=1, initial=0)
+    return {
+        "normal": np.abs(block[..., 1]).sum(axis=-1),
+        "shear": np.hypot(block[..., 2], block[..., 3]).sum(axis=-1),
+        "shear_distal": comp[..., 0],
+        "shear_lateral": comp[..., 1],
         "overflow": np.maximum(overflow, 0),
     }
