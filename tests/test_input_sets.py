@@ -11,10 +11,10 @@ import polars as pl
 import pytest
 import yaml
 from conftest import CONFIG_DIR
+from synthetic_replays import labelled_replays
 
-from graspstab.common.io import save_npz
 from graspstab.labels.input_sets import InputSetError, build_input_dataset, features
-from graspstab.labels.label_windows import label_windows, load_windows
+from graspstab.labels.label_windows import load_windows
 from graspstab.learning.models import build_model, count_parameters
 from graspstab.learning.studies import load_checkpoint
 from graspstab.replay.traces import trace_key
@@ -39,21 +39,12 @@ def _trace(slip_at: int, rng: np.random.Generator) -> dict:
 
 @pytest.fixture(scope="module")
 def baseline(tmp_path_factory) -> tuple[Path, dict]:
-    root = tmp_path_factory.mktemp("inputs")
     rng = np.random.default_rng(1)
-    replays, traces = [], {}
-    for obj, shard, grasps in (("a", 0, (0, 1)), ("b", 0, (2,)), ("c", 1, (4,))):
-        table = root / f"{obj}.parquet"
-        pl.DataFrame([{"grasp_id": g, "object": obj, "shard": shard, "diverged": False}
-                      for g in grasps]).write_parquet(table)  # fmt: skip
-        path = root / f"{obj}.npz"
-        save_npz(path, **{trace_key(g, c): v for g in grasps
-                          for c, v in _trace(2500 + 400 * g, rng).items()})  # fmt: skip
-        replays.append((table, path))
-        traces[(obj, shard)] = str(path)
-    label_windows(replays, root / "ds", LABELS, {"a": "train", "b": "val", "c": "test"}, 0.05,
-                  DT, 0)  # fmt: skip
-    return root / "ds", traces
+    return labelled_replays(
+        tmp_path_factory.mktemp("inputs"), (("a", 0, (0, 1)), ("b", 0, (2,)), ("c", 1, (4,))),
+        lambda g: _trace(2500 + 400 * g, rng), LABELS, {"a": "train", "b": "val", "c": "test"},
+        DT,
+    )  # fmt: skip
 
 
 def test_feature_names_and_widths() -> None:

@@ -12,9 +12,9 @@ import pytest
 import torch
 import yaml
 from conftest import CONFIG_DIR
+from synthetic_replays import labelled_replays
 
-from graspstab.common.io import save_npz
-from graspstab.labels.label_windows import label_windows, load_windows
+from graspstab.labels.label_windows import load_windows
 from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
 from graspstab.learning.metrics import binary_metrics
@@ -44,22 +44,13 @@ def _trace(slip_at: int, rng: np.random.Generator) -> dict:
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> tuple[Path, list[str], list[tuple[str, int]]]:
-    root = tmp_path_factory.mktemp("sensing")
     rng = np.random.default_rng(0)
-    replays, paths, keys = [], [], []
-    for obj, shard, grasps in (("a", 0, (0, 1)), ("b", 1, (3,)), ("c", 0, (5, 6))):
-        table = root / f"{obj}_{shard}.parquet"
-        pl.DataFrame([{"grasp_id": g, "object": obj, "shard": shard, "diverged": False}
-                      for g in grasps]).write_parquet(table)  # fmt: skip
-        traces = root / f"{obj}_{shard}.npz"
-        save_npz(traces, **{trace_key(g, c): v for g in grasps
-                            for c, v in _trace(2500 + 500 * g, rng).items()})  # fmt: skip
-        replays.append((table, traces))
-        paths.append(str(traces))
-        keys.append((obj, shard))
-    splits = {"a": "train", "b": "val", "c": "test"}
-    label_windows(replays, root / "ds", LABELS, splits, 0.05, DT, 0)
-    return root / "ds", paths, keys
+    ds, traces = labelled_replays(
+        tmp_path_factory.mktemp("sensing"), (("a", 0, (0, 1)), ("b", 1, (3,)), ("c", 0, (5, 6))),
+        lambda g: _trace(2500 + 500 * g, rng), LABELS, {"a": "train", "b": "val", "c": "test"},
+        DT,
+    )  # fmt: skip
+    return ds, list(traces.values()), list(traces)
 
 
 def test_segments_end_at_the_dataset_windows(dataset) -> None:

@@ -76,12 +76,15 @@ def run_replay(
     parts: dict[str, list[np.ndarray]] = {c: [] for c in channels}
     done, reason, overflow, lost_run = 0, "completed", 0, 0
     pending: list[np.ndarray] = []  # raw rows whose force channels are not computed yet
+    pending_rows = 0
 
     def flush() -> int:
+        nonlocal pending_rows
         if not pending:
             return 0
         forces = force_features(np.concatenate(pending), layout)
         pending.clear()
+        pending_rows = 0
         for c, v in forces.items():
             if c in parts:
                 parts[c].append(v.astype(np.float32))
@@ -113,7 +116,8 @@ def run_replay(
         for c in rows:
             parts[c].append(rows[c][:ok].astype(np.float32))
         pending.append(np.array(sensordata[0][:ok]))
-        if sum(len(p) for p in pending) >= FORCE_BATCH_ROWS:
+        pending_rows += ok
+        if pending_rows >= FORCE_BATCH_ROWS:
             overflow = max(overflow, flush())
         done += ok
         if ok < n or not np.isfinite(data.qpos).all() or _warnings(data):
