@@ -125,3 +125,30 @@ def test_profile_requests_reach_jobs(profile, dry_run):
     for rule, threads in profile["set-threads"].items():
         for job in (j for j in jobs if j["rule"] == rule):
             assert job["resources"].get("cpus_per_task") == str(threads), (rule, job)
+
+
+@pytest.mark.workflow
+def test_study_profile_trains_the_creep_free_benchmark_at_its_own_seeds(env, tmp_path):
+    """creep_free.seeds: the study profile trains the benchmark at seed 42 only, the main run at
+    every seed; the report's benchmark list asks for no other creep-free run (no extra jobs)."""
+    from graspstab.config import load_config
+
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "study"}, check_files=False)
+    proc = _snakemake(tmp_path, env, "--dry-run", "results/report.html", "--config",
+                      "profile=study")  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    jobs = listed_jobs(proc.stdout)
+    seeds = {}
+    for j in jobs:
+        if j["rule"] in ("train_model", "train_model_creep_free", "train_sweep_model_creep_free"):
+            seeds.setdefault(j["rule"], set()).add(int(j["wildcards"]["seed"]))
+    assert cfg["creep_free"]["seeds"] == [42]
+    assert seeds["train_model_creep_free"] == seeds["train_sweep_model_creep_free"] == {42}
+    assert seeds["train_model"] == set(cfg["train"]["seeds"]) == {42, 43, 44}
+    counts = _job_counts(proc.stdout)
+    assert counts["train_model_creep_free"] == MODELS
+    windows = len(cfg["creep_free"]["sweep_windows_s"])
+    assert counts["train_sweep_model_creep_free"] == MODELS * windows
+    # the benchmark's monitor runs the creep-free sweep's first seed
+    monitor = next(j for j in jobs if j["rule"] == "evaluate_monitor_creep_free")
+    assert all("/seed42/" in p for p in monitor["input"] if "/train/sweep/" in p)

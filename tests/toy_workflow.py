@@ -57,8 +57,8 @@ def snakemake_run(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.
 
 
 def listed_jobs(text: str) -> list[dict]:
-    """The jobs Snakemake printed (dry or real run): rule; outputs, log and benchmark as lists;
-    wildcards and resources as dicts; threads (1 when not printed)."""
+    """The jobs Snakemake printed (dry or real run): rule; inputs, outputs, log and benchmark as
+    lists; wildcards and resources as dicts; threads (1 when not printed)."""
     jobs = []
     for block in re.split(r"^(?=(?:local)?rule \w+:$)", text, flags=re.M)[1:]:
         fields = dict(re.findall(r"^    (\w+): (.*)$", block, flags=re.M))
@@ -68,7 +68,7 @@ def listed_jobs(text: str) -> list[dict]:
 
         jobs.append({
             "rule": re.match(r"(?:local)?rule (\w+):", block).group(1),
-            **{name: items(name) for name in ("output", "log", "benchmark")},
+            **{name: items(name) for name in ("input", "output", "log", "benchmark")},
             "wildcards": dict(w.split("=", 1) for w in items("wildcards")),
             "resources": dict(r.split("=", 1) for r in items("resources")),
             "threads": int(fields.get("threads", 1)),

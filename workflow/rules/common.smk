@@ -217,6 +217,12 @@ def creep_free_replay():
     })
 
 
+def creep_free_seeds(study):
+    """The creep-free benchmark's seeds for one study, 'train' or 'sweep' (creep_free.seeds, else
+    the main run's train.seeds or sweep.seeds)."""
+    return list(config["creep_free"]["seeds"] or config[study]["seeds"])
+
+
 def creep_free_sweep_ms():
     """The creep-free sweep's window lengths in whole milliseconds."""
     return [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
@@ -233,7 +239,7 @@ def held_out_replays(kind, root="results"):
 
 def sweep_first_seed(model, ms, name, root="results"):
     """One file of a sweep configuration's first-seed run (the run the monitor and export use)."""
-    seed = config["sweep"]["seeds"][0]
+    seed = (creep_free_seeds("sweep") if root == CREEP_FREE else config["sweep"]["seeds"])[0]
     return f"{root}/train/sweep/{model}/w{ms}ms/seed{seed}/{name}"
 
 

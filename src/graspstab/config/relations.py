@@ -93,6 +93,7 @@ def check_relations(cfg: dict[str, Any]) -> None:
               f"({windows}): the creep-free sweep is set beside the main run's and shares its "
               "latency table, so use windows of the main sweep or add these to sweep.windows_s.")
     _unique(list(cfg["creep_free"]["sweep_windows_s"]), "creep_free.sweep_windows_s")
+    _unique(list(cfg["creep_free"]["seeds"] or []), "creep_free.seeds")
     if ms_of(cfg["monitor"]["window_s"]) not in sweep_ms:
         _fail(f"monitor.window_s = {cfg['monitor']['window_s']} s is not a sweep window "
               f"({windows}): the monitor runs the sweep's models at that window, so choose one "

@@ -188,8 +188,8 @@ def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[st
         + "). Labels, models, training, thresholds and the proxy are the same; under the strict "
         "contact model a held object does not creep, so an unstable label means real slip.</p>",
         H.table(head, rows, caption=(
-            "Class mix, replay outcomes, creep and headline metrics (mean ± std over seeds) of "
-            "the two protocols")),
+            "Class mix, replay outcomes, creep and headline metrics (mean ± std over seeds; a "
+            "figure without ± is one seed, e.g. creep_free.seeds) of the two protocols")),
     ]  # fmt: skip
     common = sorted(set(main.sweep_windows_s) & set(ramp.sweep_windows_s))
     sweep_rows = [
