@@ -7,7 +7,7 @@ from graspstab.common.units import ms_of
 from graspstab.learning.splits import sample_assignments
 from graspstab.sensing.conditions import training_label
 
-from graspstab.config import ConfigError, load_config, shards_of
+from graspstab.config import ConfigError, creep_free_seeds, load_config, shards_of
 
 _raw_overrides = dict(config)
 try:
@@ -217,12 +217,6 @@ def creep_free_replay():
     })
 
 
-def creep_free_seeds(study):
-    """The creep-free benchmark's seeds for one study, 'train' or 'sweep' (creep_free.seeds, else
-    the main run's train.seeds or sweep.seeds)."""
-    return list(config["creep_free"]["seeds"] or config[study]["seeds"])
-
-
 def creep_free_sweep_ms():
     """The creep-free sweep's window lengths in whole milliseconds."""
     return [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
@@ -239,7 +233,8 @@ def held_out_replays(kind, root="results"):
 
 def sweep_first_seed(model, ms, name, root="results"):
     """One file of a sweep configuration's first-seed run (the run the monitor and export use)."""
-    seed = (creep_free_seeds("sweep") if root == CREEP_FREE else config["sweep"]["seeds"])[0]
+    seeds = creep_free_seeds(config, "sweep") if root == CREEP_FREE else config["sweep"]["seeds"]
+    seed = seeds[0]
     return f"{root}/train/sweep/{model}/w{ms}ms/seed{seed}/{name}"
 
 

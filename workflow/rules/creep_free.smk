@@ -106,7 +106,7 @@ use rule train_sweep_model as train_sweep_model_creep_free with:
 
 use rule aggregate_baseline as aggregate_baseline_creep_free with:
     input:
-        metrics=baseline_runs("metrics.json", creep_free_seeds("train"), root=CF),
+        metrics=baseline_runs("metrics.json", creep_free_seeds(config, "train"), root=CF),
     output:
         **{k: f"{CF}/studies/baseline/{Path(v).name}"
            for k, v in rules.aggregate_baseline.output.items()},
@@ -118,7 +118,7 @@ use rule aggregate_baseline as aggregate_baseline_creep_free with:
 
 use rule aggregate_sweep as aggregate_sweep_creep_free with:
     input:
-        metrics=sweep_runs("metrics.json", creep_free_seeds("sweep"), root=CF,
+        metrics=sweep_runs("metrics.json", creep_free_seeds(config, "sweep"), root=CF,
                            windows_ms=creep_free_sweep_ms()),
         latency=rules.measure_latency.output[0],
     output:

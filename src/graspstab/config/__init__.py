@@ -11,6 +11,7 @@ from graspstab.config.validate import validate_config
 
 __all__ = [
     "ConfigError",
+    "creep_free_seeds",
     "shards_of",
     "compose_config",
     "load_config",
@@ -39,3 +40,9 @@ def shards_of(config: dict[str, Any], object_id: str) -> int:
     split = config["objects"]["items"][object_id]["split"]
     syn = config["synthesis"]
     return int((syn.get("split_shards") or {}).get(split) or syn["shards"])
+
+
+def creep_free_seeds(config: dict[str, Any], study: str) -> list[int]:
+    """The creep-free benchmark's training seeds for ``study`` ('train' or 'sweep'):
+    ``creep_free.seeds``, else the main run's ``train.seeds`` or ``sweep.seeds``."""
+    return list(config["creep_free"]["seeds"] or config[study]["seeds"])

@@ -13,7 +13,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from graspstab.common.units import ms_of
-from graspstab.config import shards_of
+from graspstab.config import creep_free_seeds, shards_of
 
 REPORT_RULE = "report"
 
@@ -33,9 +33,6 @@ def benchmark_wildcards(
     creep_free_sweep = [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]
     shards_cf = shards if config["creep_free"]["enabled"] else []
     models_cf = models if config["creep_free"]["enabled"] else []
-    # the benchmark's seeds (creep_free.seeds; null: the main run's)
-    cf_seeds = list(config["creep_free"]["seeds"] or [])
-    train_seeds, sweep_seeds = list(config["train"]["seeds"]), list(config["sweep"]["seeds"])
     sensing = config["sensing"]
     augmented = list(sensing["augment"]["families"]) if sensing["robustness"] else []
     augmented_seeds = sensing["augment"]["seeds"] or sensing["seeds"] or config["train"]["seeds"]
@@ -53,9 +50,9 @@ def benchmark_wildcards(
         # the creep-free benchmark's rules (creep_free.smk): no jobs unless it is enabled
         "replay_grasps_creep_free": shards_cf,
         "trim_sweep_window_creep_free": {"ms": creep_free_sweep if models_cf else []},
-        "train_model_creep_free": {"model": models_cf, "seed": cf_seeds or train_seeds},
+        "train_model_creep_free": {"model": models_cf, "seed": creep_free_seeds(config, "train")},
         "train_sweep_model_creep_free": {
-            "model": models_cf, "ms": creep_free_sweep, "seed": cf_seeds or sweep_seeds
+            "model": models_cf, "ms": creep_free_sweep, "seed": creep_free_seeds(config, "sweep")
         },
         # the sensor-augmented trainings (sensing.smk): none unless the robustness study runs
         "train_augmented_model": {
