@@ -14,7 +14,7 @@ include: "workflow/rules/train.smk"
 include: "workflow/rules/monitor.smk"
 
 
-# The creep-free load-ramp benchmark beside the main run (README "Load ramp"), when enabled.
+# The creep-free load-ramp benchmark beside the main run (docs/protocols.md "The creep-free load ramp"), when enabled.
 if config["creep_free"]["enabled"]:
 
     include: "workflow/rules/creep_free.smk"

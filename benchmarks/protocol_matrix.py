@@ -2,11 +2,11 @@
 
 Replays a run's annealed grasps under each named protocol variant (contact model, squeeze,
 settle reading) and labels them with the baseline task (3.3), without writing traces: the
-measurement behind the choice of the quick profile's defaults (README "Replay protocols").
+measurement behind the choice of the quick profile's defaults (docs/protocols.md).
 
 A variant is a comma-separated list of ``key=value``: ``contact=reference|strict``,
 ``squeeze=<rad>`` (0 when not given, whatever the profile sets), ``require=either|both``,
-``seconds=<replay length>``, ``kp=<servo gain>``, and the load ramp (README "Load ramp"):
+``seconds=<replay length>``, ``kp=<servo gain>``, and the load ramp (docs/protocols.md):
 ``protocol=gravity|ramp`` and any ``replay.ramp`` key (``rate``, ``ceiling``, ``start_s``,
 ``directions``, ``path``, ``hold_fraction``, ``slip_speed``). Objects run in parallel
 (``--jobs``); each prints one line per object, then a summary per variant:

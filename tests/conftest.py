@@ -1,44 +1,168 @@
-"""Shared test fixtures: repository paths and the shared assets CI provides beside the checkout."""
+"""Shared test fixtures: repository paths, and the assets obtained exactly as the workflow does.
+
+The YCB meshes and the ORCA hand come from the workflow's own settings: the variables
+``GRASPSTAB_YCB_DIR`` / ``GRASPSTAB_HAND_DIR`` (config ``assets.ycb_dir`` / ``assets.hand_dir``),
+else the checksummed download (``assets.ycb_url`` / ``assets.hand_url``) into the workflow's
+cache ``resources/``, by the fetch functions the rules call. ``pytest --workflow-config KEY=VALUE``
+takes what ``snakemake --config`` takes (e.g. ``'assets={ycb_url: http://mirror/{id}.tgz}'``).
+"""
 
 from __future__ import annotations
 
+import fcntl
+import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO / "config"
 SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
+# The workflow's own cache of obtained inputs (rules fetch_ycb_object, fetch_hand_description).
+RESOURCES = REPO / "resources"
+ASSET_VARIABLES = ("GRASPSTAB_YCB_DIR", "GRASPSTAB_HAND_DIR")
+ASSET_HELP = (
+    "Set GRASPSTAB_YCB_DIR to a folder holding <id>/textured.obj (the YCB google_16k meshes) and "
+    "GRASPSTAB_HAND_DIR to an orcahand_description copy (the folder holding v2/ and LICENSE), or "
+    "give the tests network access so they can download the pinned archives into resources/."
+)
 
 
-def _shared_assets() -> Path:
-    env = os.environ.get("GRASPSTAB_SHARED_ASSETS")
-    return Path(env) if env else REPO.parent / "shared" / "assets"
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--workflow-config",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a config override as snakemake --config takes it; the tests obtain their assets "
+        "with the resulting assets.* settings (repeatable)",
+    )
 
 
-SHARED_ASSETS = _shared_assets()
-YCB_DIR = SHARED_ASSETS / "ycb"
-HAND_DIR = SHARED_ASSETS / "orcahand_description"
+def workflow_config(config: pytest.Config) -> dict[str, Any]:
+    """The resolved workflow config under this session's ``--workflow-config`` overrides."""
+    from snakemake.cli import parse_config
+
+    from graspstab.config import load_config
+
+    return load_config(
+        CONFIG_DIR,
+        SCHEMA,
+        snakemake_config=parse_config(config.getoption("workflow_config")),
+        check_files=False,
+    )
+
+
+@contextmanager
+def _assets_lock() -> Iterator[None]:
+    """One process at a time fills resources/ (parallel test workers share it)."""
+    RESOURCES.mkdir(exist_ok=True)
+    with open(RESOURCES / ".tests.lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _recorded(dest: Path, key: str, value: str | None) -> bool:
+    """Whether ``dest`` holds a finished fetch whose source.json records ``key == value``."""
+    try:
+        record = json.loads((dest / "source.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return value is not None and record.get(key) == value
+
+
+def _provide_assets(cfg: dict[str, Any]) -> tuple[Path, Path]:
+    """Every mesh of the configured object set and the hand, fetched as the rules fetch them."""
+    from graspstab.assets.hand import fetch_hand_description, read_manifest
+    from graspstab.assets.ycb import fetch_ycb_object
+
+    assets = cfg["assets"]
+    ycb_root = RESOURCES / "ycb"
+    hand_dest = RESOURCES / "orcahand_description"
+    with _assets_lock():
+        for object_id, entry in cfg["objects"]["items"].items():
+            dest = ycb_root / object_id
+            fetched = (dest / "textured.obj").is_file() and entry.get("mesh") is None
+            if fetched and _recorded(dest, "expected_sha256", entry.get("sha256")):
+                continue  # fetched and verified before (the rule's outputs exist)
+            fetch_ycb_object(
+                object_id,
+                dest,
+                local_dir=assets["ycb_dir"],
+                url_template=assets["ycb_url"],
+                sha256=entry.get("sha256"),
+                mesh_override=entry.get("mesh"),
+            )
+        in_place = assets["hand_dir"] and Path(assets["hand_dir"]).resolve() == hand_dest
+        if not in_place and not _recorded(hand_dest, "upstream_commit", assets["hand_commit"]):
+            manifest = assets["hand_manifest"]
+            fetch_hand_description(
+                hand_dest,
+                local_dir=assets["hand_dir"],
+                url_template=assets["hand_url"],
+                commit=assets["hand_commit"],
+                manifest=read_manifest(manifest) if manifest else None,
+            )
+    return ycb_root, hand_dest
 
 
 @pytest.fixture(scope="session")
-def ycb_dir() -> Path:
-    """The local YCB copy (../shared/assets/ycb); the suite needs it, so its absence is an error."""
-    if not YCB_DIR.is_dir():
-        raise FileNotFoundError(
-            f"{YCB_DIR} not found: the tests need the shared assets beside the checkout "
-            "(or GRASPSTAB_SHARED_ASSETS pointing at them)"
-        )
-    return YCB_DIR
+def resolved_assets(pytestconfig: pytest.Config) -> tuple[Path, Path]:
+    """(YCB folder laid out <id>/textured.obj, hand description folder), obtained once.
+
+    On failure every test that needs them errors with one message naming the variables to set.
+    """
+    from graspstab.assets import AssetError
+    from graspstab.config import ConfigError
+
+    try:
+        return _provide_assets(workflow_config(pytestconfig))
+    except (AssetError, ConfigError, OSError, ValueError) as exc:
+        cause = str(exc)
+    # outside the except block, so pytest prints this message alone (no exception chain)
+    pytest.fail(
+        f"graspstab tests need the YCB meshes and the ORCA hand description, obtained as the "
+        f"workflow obtains them, and could not get them: {cause}\n{ASSET_HELP}",
+        pytrace=False,
+    )
 
 
 @pytest.fixture(scope="session")
-def hand_assets_dir() -> Path:
-    """The local ORCA hand description copy."""
-    if not HAND_DIR.is_dir():
-        raise FileNotFoundError(f"{HAND_DIR} not found (see ycb_dir)")
-    return HAND_DIR
+def ycb_dir(resolved_assets: tuple[Path, Path]) -> Path:
+    """The YCB meshes of the default object set, laid out ``<dir>/<id>/textured.obj``."""
+    return resolved_assets[0]
+
+
+@pytest.fixture(scope="session")
+def hand_assets_dir(resolved_assets: tuple[Path, Path]) -> Path:
+    """The ORCA hand description (the folder holding ``v2/`` and ``LICENSE``)."""
+    return resolved_assets[1]
+
+
+@pytest.fixture(scope="session")
+def foam_brick_mesh(ycb_dir: Path) -> Path:
+    """The foam brick's textured.obj (the objects tests' real mesh)."""
+    return ycb_dir / "061_foam_brick" / "textured.obj"
+
+
+@pytest.fixture(scope="session")
+def asset_env(resolved_assets: tuple[Path, Path]) -> dict[str, str]:
+    """The environment for a Snakemake run that executes jobs: the variables at the assets."""
+    ycb, hand = resolved_assets
+    return dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb), GRASPSTAB_HAND_DIR=str(hand))
+
+
+@pytest.fixture(scope="session")
+def bare_env() -> dict[str, str]:
+    """The environment for a dry run, which needs no assets: no asset variables at all."""
+    return {k: v for k, v in os.environ.items() if k not in ASSET_VARIABLES}
 
 
 # Fast CoACD settings for tests that need a preprocessed object but not a faithful decomposition.
@@ -83,14 +207,9 @@ def foam_brick_dir(ycb_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> P
 
 
 @pytest.fixture(scope="session")
-def run(tmp_path_factory, ycb_dir, hand_assets_dir):
+def run(tmp_path_factory, asset_env):
     """The end-to-end toy run (tests/toy_workflow.py), shared by test_workflow and test_report:
-    (workdir, env, config)."""
-    from tests.toy_workflow import CONFIG, snakemake_run
+    (workdir, env, config); built once per session, whichever xdist worker asks first."""
+    from tests.toy_workflow import shared_toy_run
 
-    workdir = tmp_path_factory.mktemp("wf")
-    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    config = CONFIG
-    proc = snakemake_run(workdir, "results/report.html", *config, env=env)
-    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
-    return workdir, env, config
+    return shared_toy_run(tmp_path_factory, asset_env)

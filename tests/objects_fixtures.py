@@ -5,9 +5,6 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 from conftest import COARSE_COACD as COARSE_COACD  # re-exported for the objects tests
-from conftest import YCB_DIR
-
-FOAM_BRICK = YCB_DIR / "061_foam_brick" / "textured.obj"
 
 
 def sliver(at: np.ndarray, size: float = 0.001) -> tuple[np.ndarray, np.ndarray]:

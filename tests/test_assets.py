@@ -18,23 +18,22 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import HAND_DIR, YCB_DIR
+import yaml
+from conftest import CONFIG_DIR
 
 from graspstab.assets import YCB_IDS, AssetError, is_known_ycb_id
 from graspstab.assets.cli import main
 from graspstab.assets.hand import (
+    ABSENT_LOCALLY_OK,
     HAND_COMMIT,
     UPSTREAM_MJCF,
     build_manifest,
     fetch_hand_description,
     load_manifest,
+    read_manifest,
 )
 from graspstab.assets.ycb import fetch_ycb_object
-
-# The shared copies beside the checkout; tests that need them take the conftest fixtures, which
-# fail (never skip) when they are missing.
-needs_shared_ycb = pytest.mark.usefixtures("ycb_dir")
-needs_shared_hand = pytest.mark.usefixtures("hand_assets_dir")
+from tests.toy_workflow import listed_jobs, snakemake_run
 
 FOAM = "061_foam_brick"
 FOAM_SHA = "04a5b79997a874638c3ad71044b1ed50fae16148f9bd29629fe37caab3a71d86"
@@ -96,23 +95,27 @@ def test_catalogue() -> None:
     assert isinstance(YCB_IDS, frozenset) and len(YCB_IDS) > 90
 
 
-@needs_shared_ycb
-def test_catalogue_knows_shared_objects() -> None:
-    for d in YCB_DIR.iterdir():
-        if d.is_dir():
-            assert is_known_ycb_id(d.name)
+def test_catalogue_knows_every_configured_object() -> None:
+    """Every id of every committed object set is in the catalogue (a YCB download exists)."""
+    sets = sorted((CONFIG_DIR / "objects").glob("*.yaml"))
+    assert sets
+    for path in sets:
+        items = yaml.safe_load(path.read_text())["items"]
+        unknown = [
+            i for i, entry in items.items() if not entry.get("mesh") and not is_known_ycb_id(i)
+        ]
+        assert not unknown, (path.name, unknown)
 
 
 # ---------------------------------------------------------------- YCB, local and override
 
 
-@needs_shared_ycb
-def test_ycb_local_copy_verified(tmp_path: Path) -> None:
+def test_ycb_local_copy_verified(tmp_path: Path, ycb_dir: Path) -> None:
     dest = tmp_path / "resources" / "ycb" / FOAM
-    record = fetch_ycb_object(FOAM, dest, local_dir=YCB_DIR, sha256=FOAM_SHA)
+    record = fetch_ycb_object(FOAM, dest, local_dir=ycb_dir, sha256=FOAM_SHA)
     mesh = dest / "textured.obj"
     assert mesh.is_file() and not mesh.is_symlink()
-    assert mesh.read_bytes() == (YCB_DIR / FOAM / "textured.obj").read_bytes()
+    assert mesh.read_bytes() == (ycb_dir / FOAM / "textured.obj").read_bytes()
     assert files_under(dest) == ["source.json", "textured.obj"]
     saved = json.loads((dest / "source.json").read_text())
     assert saved == record
@@ -283,20 +286,23 @@ def test_download_unreachable_host(tmp_path: Path) -> None:
 # ---------------------------------------------------------------- hand, local
 
 
-@needs_shared_hand
-def test_committed_manifest_matches_shared_copy() -> None:
+def test_committed_manifest_matches_the_hand_in_use(hand_assets_dir: Path) -> None:
+    """Every pinned file hashes to its pin in the copy the tests use (a local copy's patched MJCF
+    through its *.upstream twin); a local copy lacks only the three documented meshes."""
     manifest = load_manifest()
-    assert manifest == build_manifest(HAND_DIR)
+    built = build_manifest(hand_assets_dir)
+    assert {rel: built[rel] for rel in manifest} == manifest
+    assert set(built) - set(manifest) <= ABSENT_LOCALLY_OK
     assert all(p.endswith(".stl") for p in manifest if p not in UPSTREAM_MJCF)
     assert set(UPSTREAM_MJCF) <= set(manifest)
 
 
-@needs_shared_hand
-def test_hand_local_copy_verified(tmp_path: Path) -> None:
+def test_hand_local_copy_verified(tmp_path: Path, hand_assets_dir: Path) -> None:
     dest = tmp_path / "resources" / "orcahand_description"
-    record = fetch_hand_description(dest, local_dir=HAND_DIR)
-    assert (dest / "v2" / "scene_right.xml").is_file()
-    assert (dest / "LICENSE").is_file() and (dest / "SOURCES.md").is_file()
+    record = fetch_hand_description(dest, local_dir=hand_assets_dir)
+    assert (dest / "v2" / "scene_right.xml").is_file() and (dest / "LICENSE").is_file()
+    # a local copy's SOURCES.md (the documented patch) travels with it; a download has none
+    assert (dest / "SOURCES.md").is_file() == (hand_assets_dir / "SOURCES.md").is_file()
     saved = json.loads((dest / "source.json").read_text())
     assert saved == record and saved["method"] == "local"
     assert saved["upstream_commit"] == HAND_COMMIT
@@ -305,10 +311,9 @@ def test_hand_local_copy_verified(tmp_path: Path) -> None:
     assert [p.name for p in (tmp_path / "resources").iterdir()] == ["orcahand_description"]
 
 
-@needs_shared_hand
-def test_hand_local_corrupted_stl(tmp_path: Path) -> None:
+def test_hand_local_corrupted_stl(tmp_path: Path, hand_assets_dir: Path) -> None:
     local = tmp_path / "hand_copy"
-    shutil.copytree(HAND_DIR, local)
+    shutil.copytree(hand_assets_dir, local)
     victim = local / "v2/models/assets/right/T-DP.stl"
     victim.write_bytes(victim.read_bytes()[:-10] + b"0123456789")
     out = tmp_path / "resources"
@@ -478,3 +483,69 @@ def test_cli_ok_and_module_entry(tmp_path: Path) -> None:
     )
     assert proc.returncode == 1
     assert "checksum" in proc.stderr and "Traceback" not in proc.stderr
+
+
+# ---------------------------------------------------------------- hand, the user's manifest
+
+
+def test_hand_manifest_file_pins_another_commit(tmp_path: Path, server: tuple[str, Path]) -> None:
+    """assets.hand_manifest: a commit the shipped manifest does not pin, verified by the user's."""
+    base, root = server
+    commit = "f" * 40
+    files = _fake_hand()
+    _serve_hand(root, commit, files)
+    path = tmp_path / "manifest.json"
+    path.write_text(json.dumps({STL: sha(files[STL]).upper()}))  # case is not significant
+    manifest = read_manifest(path)
+    assert manifest == {STL: sha(files[STL])}
+    dest = tmp_path / "out" / "orcahand_description"
+    record = fetch_hand_description(
+        dest, url_template=base + "/{commit}.tar.gz", commit=commit, manifest=manifest
+    )
+    assert record["upstream_commit"] == commit and record["manifest"]["verified"] == 1
+    path.write_text(json.dumps({STL: "5" * 64}))
+    with pytest.raises(AssetError, match="checksum check failed"):
+        fetch_hand_description(
+            tmp_path / "out2" / "hand",
+            url_template=base + "/{commit}.tar.gz",
+            commit=commit,
+            manifest=read_manifest(path),
+        )
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        (None, "no such file"),
+        ("{not json", "not readable JSON"),
+        ("[]", "non-empty JSON object"),
+        ('{"v2/a.stl": "abc"}', "not 64 hexadecimal digits"),
+    ],
+)
+def test_hand_manifest_file_errors_name_the_file_and_key(
+    tmp_path: Path, text: str | None, words: str
+) -> None:
+    path = tmp_path / "manifest.json"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(AssetError) as err:
+        read_manifest(path)
+    msg = str(err.value)
+    assert words in msg and str(path) in msg and "assets.hand_manifest" in msg
+
+
+def test_hand_manifest_is_the_fetch_rules_declared_input(
+    tmp_path: Path, bare_env: dict[str, str]
+) -> None:
+    """A dry run (no assets needed): the manifest file is an input, so editing it refetches."""
+    path = tmp_path / "manifest.json"
+    path.write_text(json.dumps({STL: "6" * 64}))
+    work = tmp_path / "wd"
+    config = ["--config", f"assets={{hand_manifest: {path}}}"]
+    proc = snakemake_run(work, "resources/orcahand_description", "-n", *config, env=bare_env)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-3000:]
+    [job] = listed_jobs(out)
+    assert job["rule"] == "fetch_hand_description" and job["input"] == [str(path)], job
+    proc = snakemake_run(work, "resources/orcahand_description", "-n", env=bare_env)
+    assert proc.returncode == 0 and listed_jobs(proc.stdout)[0]["input"] == []

@@ -18,6 +18,8 @@ from graspstab.common.cache import (
 )
 from graspstab.common.provenance import module_closure
 
+OLD_NS = 978_307_200 * 10**9  # 2001-01-01T00:00:00Z
+
 
 class Namedlist(list):
     """What a script job's snakemake.input/output/params offer: a list with named items."""
@@ -79,13 +81,24 @@ def test_revert_restores_the_first_results_byte_for_byte(tmp_path):
     reverted = _job(tmp_path, cache)
     for p in reverted.output:  # Snakemake removes outputs before it runs a job
         Path(p).unlink()
+    # the entries' files dated 2001, the input touched just now (as if the revert had rewritten
+    # it): a restore that kept the entry's dates would leave outputs older than their input
+    stored = [f for f in cache.rglob("*") if f.is_file()]
+    assert len(stored) >= 2 * 3  # both entries: two outputs and the record each
+    for f in stored:
+        os.utime(f, ns=(OLD_NS, OLD_NS))
+    now = time.time_ns()
+    os.utime(tmp_path / "in.txt", ns=(now, now))
     compute_reverted = _Counter(reverted)
     assert run_cached(reverted, ["replay"], compute_reverted) is True
     assert compute_reverted.calls == 0
     assert {k: Path(v).read_bytes() for k, v in reverted.output.items()} == original
     assert "restored from cache entry" in Path(reverted.log[0]).read_text()
-    # the restored files are new to Snakemake: their mtime is now, not the entry's
-    assert time.time() - Path(reverted.output.table).stat().st_mtime < 60
+    # the restored files are new to Snakemake: dated at the restore, not the entry's date, so no
+    # older than the input (Snakemake would otherwise schedule the job again)
+    for out in reverted.output:
+        assert Path(out).stat().st_mtime_ns >= now, out
+    assert all(f.stat().st_mtime_ns == OLD_NS for f in stored)  # the entries keep theirs
 
 
 def test_key_follows_input_content_not_paths(tmp_path):

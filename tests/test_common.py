@@ -109,11 +109,28 @@ def test_save_figure_is_atomic(tmp_path):
     plt.close(fig)
 
 
-def test_provenance_records_the_compute_platform():
-    from graspstab.common.provenance import provenance
+def test_provenance_records_the_compute_platform(monkeypatch, tmp_path):
+    """The platform record reads the machine it runs on when first asked (here a faked CPU count,
+    BLAS held to one thread), not values fixed at import, and lands in an artefact's strict JSON
+    as it was read."""
+    from threadpoolctl import threadpool_limits
 
-    record = provenance("objects", {"a": 1})["platform"]
-    assert record["cpu_count"] == os.cpu_count() and record["machine"]
-    # numpy's BLAS is always loaded: its build and thread count are what reorder reductions
-    assert any(lib["internal_api"] in {"openblas", "mkl", "blis", "accelerate"}
-               for lib in record["blas"])  # fmt: skip
+    from graspstab.common.provenance import compute_platform, provenance
+
+    real = provenance("objects", {"a": 1})["platform"]  # every BLAS the stage uses now loaded
+    fake = (real["cpu_count"] or 0) + 3  # not this machine's count
+    monkeypatch.setattr(os, "cpu_count", lambda: fake)
+    compute_platform.cache_clear()
+    try:
+        with threadpool_limits(limits=1):
+            record = provenance("objects", {"a": 1})["platform"]
+        assert record["cpu_count"] == fake and record["machine"] == real["machine"]
+        # numpy's BLAS is always loaded: its build and thread count are what reorder reductions,
+        # and the count is the one in force when the record was made
+        blas = [lib for lib in record["blas"]
+                if lib["internal_api"] in {"openblas", "mkl", "blis", "accelerate"}]  # fmt: skip
+        assert blas and all(lib["num_threads"] == 1 for lib in blas)
+        write_json(tmp_path / "p.json", {"platform": record})
+        assert read_json(tmp_path / "p.json")["platform"] == record
+    finally:
+        compute_platform.cache_clear()  # later artefacts read the real machine again

@@ -1,4 +1,4 @@
-"""Bad mesh files (issue 14, item 5): refused at the first job, naming the object and the user's
+"""Bad mesh files: refused at the first job, naming the object and the user's
 own file, leaving nothing behind; the SDF node cap; editing the user's mesh reruns its copy."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from objects_fixtures import COARSE_COACD, FOAM_BRICK
+from objects_fixtures import COARSE_COACD
 
 from graspstab.assets import AssetError
 from graspstab.assets.mesh_file import MeshFileError, load_object_mesh
@@ -39,21 +39,21 @@ BAD = {
 }
 
 
-def _brick() -> trimesh.Trimesh:
-    return trimesh.load(FOAM_BRICK, force="mesh", process=False, skip_materials=True)
+def _brick(brick: Path) -> trimesh.Trimesh:
+    return trimesh.load(brick, force="mesh", process=False, skip_materials=True)
 
 
-def _write_bad(case: str, folder: Path) -> Path:
-    """The user's bad mesh of ``case`` in ``folder``."""
+def _write_bad(case: str, folder: Path, brick: Path) -> Path:
+    """The user's bad mesh of ``case`` in ``folder``, made from the YCB brick at ``brick``."""
     path = folder / BAD[case][0]
     if case == "empty":
         path.write_bytes(b"")
     elif case == "text":  # a text file renamed .obj
         path.write_text("Shopping list\nmilk, eggs, a 5 cm foam brick\n")
     elif case == "stl":
-        path.write_bytes(trimesh.exchange.stl.export_stl(_brick()))
+        path.write_bytes(trimesh.exchange.stl.export_stl(_brick(brick)))
     else:  # the YCB brick in millimetres (x1000), or 20 times too small (< 5 mm)
-        mesh = _brick()
+        mesh = _brick(brick)
         mesh.apply_scale(1000.0 if case == "millimetres" else 0.05)
         path.write_text(trimesh.exchange.obj.export_obj(mesh, include_normals=False))
     return path
@@ -75,8 +75,8 @@ def _as_fetched(user_mesh: Path, resources: Path) -> Path:
 
 
 @pytest.mark.parametrize("case", sorted(BAD))
-def test_fetch_refuses_bad_user_mesh(tmp_path: Path, case: str) -> None:
-    user = _write_bad(case, tmp_path)
+def test_fetch_refuses_bad_user_mesh(tmp_path: Path, case: str, foam_brick_mesh: Path) -> None:
+    user = _write_bad(case, tmp_path, foam_brick_mesh)
     dest = tmp_path / "resources" / "ycb" / FOAM
     with pytest.raises(AssetError) as err:
         fetch_ycb_object(FOAM, dest, mesh_override=user)
@@ -87,9 +87,9 @@ def test_fetch_refuses_bad_user_mesh(tmp_path: Path, case: str) -> None:
     assert not dest.exists() and _files_under(tmp_path / "resources") == []
 
 
-def test_fetch_accepts_good_user_mesh(tmp_path: Path) -> None:
+def test_fetch_accepts_good_user_mesh(tmp_path: Path, foam_brick_mesh: Path) -> None:
     user = tmp_path / "brick.OBJ"  # the suffix is case-insensitive
-    shutil.copyfile(FOAM_BRICK, user)
+    shutil.copyfile(foam_brick_mesh, user)
     record = fetch_ycb_object(FOAM, tmp_path / "out", mesh_override=user)
     assert record["method"] == "mesh_override" and record["source"] == str(user.resolve())
 
@@ -98,10 +98,12 @@ def test_fetch_accepts_good_user_mesh(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("case", sorted(BAD))
-def test_preprocess_refuses_bad_mesh_naming_object_and_file(tmp_path: Path, case: str) -> None:
+def test_preprocess_refuses_bad_mesh_naming_object_and_file(
+    tmp_path: Path, case: str, foam_brick_mesh: Path
+) -> None:
     """A copy fetched before these checks existed still fails first thing, naming the object and
     the file it reads (its declared input), and creates no output folder."""
-    user = _write_bad(case, tmp_path)
+    user = _write_bad(case, tmp_path, foam_brick_mesh)
     copy = _as_fetched(user, tmp_path / "resources")
     out = tmp_path / "results" / "objects" / FOAM
     with pytest.raises(MeshFileError) as err:
@@ -116,17 +118,17 @@ def test_preprocess_refuses_bad_mesh_naming_object_and_file(tmp_path: Path, case
     assert not out.exists() and not (tmp_path / "results").exists()
 
 
-def test_load_without_a_user_file_names_the_file(tmp_path: Path) -> None:
-    bad = _write_bad("millimetres", tmp_path)
+def test_load_without_a_user_file_names_the_file(tmp_path: Path, foam_brick_mesh: Path) -> None:
+    bad = _write_bad("millimetres", tmp_path, foam_brick_mesh)
     with pytest.raises(MeshFileError, match=rf"object '{FOAM}': mesh {re.escape(str(bad))} is "):
         load_object_mesh(bad, FOAM)
 
 
 def test_sdf_node_cap_fails_before_the_slow_steps(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, foam_brick_mesh: Path
 ) -> None:
     user = tmp_path / "own.obj"
-    shutil.copyfile(FOAM_BRICK, user)
+    shutil.copyfile(foam_brick_mesh, user)
     copy = _as_fetched(user, tmp_path / "resources")
     out = tmp_path / "results" / "objects" / FOAM
     fine = {**PARAMS, "sdf": {"spacing": 0.0002, "margin": 0.05}}  # ~5e8 nodes
@@ -147,16 +149,16 @@ def test_sdf_node_cap_fails_before_the_slow_steps(
     assert not out.exists()
 
 
-def test_sdf_grid_refuses_mesh_in_millimetres_without_allocating() -> None:
-    mesh = _brick()
+def test_sdf_grid_refuses_mesh_in_millimetres_without_allocating(foam_brick_mesh: Path) -> None:
+    mesh = _brick(foam_brick_mesh)
     mesh.apply_scale(1000.0)  # the 271 TiB grid of issue 14
     with pytest.raises(SDFGridTooLarge, match=r"is the mesh in metres\? Rescale it") as err:
         SDFGrid.build(mesh, spacing=0.0015, margin=0.05, what=f"object '{FOAM}'")
     assert str(err.value).startswith(f"object '{FOAM}': its signed-distance grid would need")
 
 
-def test_grid_shape_unchanged_under_the_cap() -> None:
-    bounds = np.asarray(_brick().bounds)
+def test_grid_shape_unchanged_under_the_cap(foam_brick_mesh: Path) -> None:
+    bounds = np.asarray(_brick(foam_brick_mesh).bounds)
     for spacing, margin in ((0.0015, 0.05), (0.003, 0.02), (0.001, 0.0)):
         lo = bounds[0] - margin
         before = np.ceil((bounds[1] + margin - lo) / spacing).astype(int) + 1  # the old formula
@@ -181,11 +183,11 @@ def _own_object_set(tmp_path: Path, mesh: Path) -> list[str]:
 
 @pytest.mark.workflow
 def test_editing_users_mesh_reruns_fetch_and_a_bad_edit_fails_there(
-    tmp_path: Path, ycb_dir: Path, hand_assets_dir: Path
+    tmp_path: Path, asset_env: dict[str, str], foam_brick_mesh: Path
 ) -> None:
-    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+    env = asset_env
     user = tmp_path / "own.obj"
-    shutil.copyfile(FOAM_BRICK, user)
+    shutil.copyfile(foam_brick_mesh, user)
     config = _own_object_set(tmp_path, user)
     work = tmp_path / "wd"
     target = f"resources/ycb/{FOAM}/textured.obj"
@@ -208,7 +210,7 @@ def test_editing_users_mesh_reruns_fetch_and_a_bad_edit_fails_there(
     assert f"Updated input files: {user}" in out
 
     # a bad edit (the mesh saved in millimetres) fails at that first job, naming object and file
-    bad = _brick()
+    bad = _brick(foam_brick_mesh)
     bad.apply_scale(1000.0)
     user.write_text(trimesh.exchange.obj.export_obj(bad, include_normals=False))
     os.utime(user, (later + 10, later + 10))

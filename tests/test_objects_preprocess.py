@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 import trimesh
-from objects_fixtures import COARSE_COACD, FOAM_BRICK
+from objects_fixtures import COARSE_COACD
 
 from graspstab.objects.decompose import inside_any_part
 from graspstab.objects.figure import plot_objects
@@ -27,11 +27,11 @@ MASS = 0.028
 
 
 @pytest.fixture(scope="module")
-def out_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def out_dir(tmp_path_factory: pytest.TempPathFactory, foam_brick_mesh: Path) -> Path:
     out = tmp_path_factory.mktemp("foam_brick")
     argv = [
         "--object-id", "061_foam_brick",
-        "--mesh", str(FOAM_BRICK),
+        "--mesh", str(foam_brick_mesh),
         "--out-dir", str(out),
         "--mass", str(MASS),
         "--params-json", json.dumps(PARAMS),

@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from objects_fixtures import FOAM_BRICK
 
 from graspstab.objects.frame import to_upright_com_frame
 from graspstab.objects.preprocess_object import load_mesh
@@ -50,8 +49,8 @@ def test_sphere_sdf_accuracy_sign_and_normals(
     assert np.allclose(np.linalg.norm(normal, axis=1), 1.0)
 
 
-def test_ycb_sdf_accuracy(tmp_path: Path) -> None:
-    mesh, _ = repair_mesh(load_mesh(FOAM_BRICK), object_id="061_foam_brick")
+def test_ycb_sdf_accuracy(tmp_path: Path, foam_brick_mesh: Path) -> None:
+    mesh, _ = repair_mesh(load_mesh(foam_brick_mesh), object_id="061_foam_brick")
     mesh, _, _ = to_upright_com_frame(mesh)
     grid = SDFGrid.build(mesh, spacing=SPACING, margin=0.05)
     grid.save(tmp_path / "sdf.npz")
@@ -83,8 +82,41 @@ def test_query_outside_grid_and_saved_fields(sphere_grid: SDFGrid, tmp_path: Pat
         assert set(data.files) == {"values", "origin", "spacing", "shape"}
 
 
+def _reference_query(grid: SDFGrid, p: np.ndarray) -> tuple[float, np.ndarray]:
+    """One point the slow way: scipy's trilinear interpolant on the grid nodes and its gradient
+    by central differences inside the point's cell (the interpolant is linear along each axis
+    there, so the difference is exact); outside the box, the clamped point's value plus the
+    distance to it, the normal pointing away from the box."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    axes = [grid.origin[i] + grid.spacing * np.arange(n) for i, n in enumerate(grid.shape)]
+    interp = RegularGridInterpolator(axes, grid.values.astype(np.float64), method="linear")
+    q = np.clip(p, grid.origin, grid.upper)
+    offset = p - q
+    if np.linalg.norm(offset) > 0:
+        return float(interp(q)[0]) + float(np.linalg.norm(offset)), offset / np.linalg.norm(offset)
+    h = 1e-4 * grid.spacing
+    grad = np.array([(interp(q + h * e)[0] - interp(q - h * e)[0]) / (2 * h) for e in np.eye(3)])
+    return float(interp(q)[0]), grad / np.linalg.norm(grad)
+
+
 def test_query_is_vectorised_for_large_batches(sphere_grid: SDFGrid) -> None:
+    """A 100,000-point batch in one call, each point as the one-point reference gives it: inside
+    the box (most points) and outside it (beyond the 2 cm margin)."""
     pts = np.random.default_rng(0).uniform(-0.1, 0.1, (100_000, 3))
     dist, normal = sphere_grid.query(pts)
     assert dist.shape == (100_000,) and normal.shape == (100_000, 3)
     assert np.all(np.isfinite(dist)) and np.all(np.isfinite(normal))
+    inside = np.all((pts > sphere_grid.origin) & (pts < sphere_grid.upper), axis=1)
+    # away from cell faces, so the differences stay in one cell
+    u = (pts - sphere_grid.origin) / sphere_grid.spacing
+    clear = np.all(np.abs(u - np.round(u)) > 1e-3, axis=1)
+    picks = [*np.flatnonzero(inside & clear)[:40], *np.flatnonzero(~inside)[:20]]
+    assert len(picks) == 60
+    for k in picks:
+        ref_dist, ref_normal = _reference_query(sphere_grid, pts[k])
+        assert dist[k] == pytest.approx(ref_dist, abs=1e-9), k
+        np.testing.assert_allclose(normal[k], ref_normal, atol=1e-6, err_msg=str(k))
+        # and alone: no point's answer depends on the rest of the batch
+        one_dist, one_normal = sphere_grid.query(pts[k : k + 1])
+        assert one_dist[0] == dist[k] and np.array_equal(one_normal[0], normal[k])

@@ -7,7 +7,6 @@ jobs with the value the profile's expression gives.
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -70,16 +69,12 @@ def profile() -> dict:
 
 
 @pytest.fixture(scope="module")
-def env(ycb_dir: Path, hand_assets_dir: Path) -> dict[str, str]:
-    return dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-
-
-@pytest.fixture(scope="module")
-def dry_run(tmp_path_factory, env) -> str:
-    """The thesis DAG through the SLURM profile (a dry run: nothing is submitted)."""
+def dry_run(tmp_path_factory, bare_env) -> str:
+    """The thesis DAG through the SLURM profile (a dry run: nothing is submitted, and no assets
+    are needed)."""
     workdir = tmp_path_factory.mktemp("slurm_dry_run")
     proc = _snakemake(
-        workdir, env, "--profile", str(PROFILE), "--dry-run", "--cores", str(DRY_CORES),
+        workdir, bare_env, "--profile", str(PROFILE), "--dry-run", "--cores", str(DRY_CORES),
         "--config", "profile=thesis",
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -95,8 +90,8 @@ def test_thesis_dry_run_job_counts(dry_run):
 
 
 @pytest.mark.workflow
-def test_profile_rules_exist(profile, env, tmp_path):
-    proc = _snakemake(tmp_path, env, "--list-rules")
+def test_profile_rules_exist(profile, bare_env, tmp_path):
+    proc = _snakemake(tmp_path, bare_env, "--list-rules")
     assert proc.returncode == 0, proc.stderr[-3000:]
     rules = set(proc.stdout.split())
     named = set(profile["set-resources"]) | set(profile["set-threads"])
@@ -128,13 +123,13 @@ def test_profile_requests_reach_jobs(profile, dry_run):
 
 
 @pytest.mark.workflow
-def test_study_profile_trains_the_creep_free_benchmark_at_its_own_seeds(env, tmp_path):
+def test_study_profile_trains_the_creep_free_benchmark_at_its_own_seeds(bare_env, tmp_path):
     """creep_free.seeds: the study profile trains the benchmark at seed 42 only, the main run at
     every seed; the report's benchmark list asks for no other creep-free run (no extra jobs)."""
     from graspstab.config import load_config
 
     cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "study"}, check_files=False)
-    proc = _snakemake(tmp_path, env, "--dry-run", "results/report.html", "--config",
+    proc = _snakemake(tmp_path, bare_env, "--dry-run", "results/report.html", "--config",
                       "profile=study")  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     jobs = listed_jobs(proc.stdout)

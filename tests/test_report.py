@@ -8,7 +8,6 @@ import base64
 import io
 import json
 import math
-import os
 import re
 import shutil
 import subprocess
@@ -328,12 +327,12 @@ def test_dot_with_undeclared_node_is_an_error() -> None:
 
 @pytest.fixture(scope="session")
 def snakemake_graphs(
-    tmp_path_factory: pytest.TempPathFactory, ycb_dir: Path, hand_assets_dir: Path
+    tmp_path_factory: pytest.TempPathFactory, bare_env: dict[str, str]
 ) -> dict[str, Path]:
     """Snakemake's own --rulegraph and --dag of this workflow (default config), made exactly as
-    rule rulegraph makes them (a few seconds; nothing runs)."""
+    rule rulegraph makes them (a few seconds; nothing runs, so no assets are needed)."""
     out = tmp_path_factory.mktemp("graphs")
-    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
+    env = bare_env
     paths = {}
     for kind in ("rulegraph", "dag"):
         proc = subprocess.run(
@@ -421,8 +420,10 @@ def _monitor_artefacts(root: Path, figs: dict[str, Path]) -> dict[str, Path]:
         "timeline": {"monitor": "lstm", "object": "o", "grasp_id": 0, "split": "test"},
     })  # fmt: skip
     export = root / "export" / "pick"
-    write_constants(export / "constants.json",
-                    MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.4, 20, family="lstm"))
+    write_constants(
+        export / "constants.json",
+        MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.4, 20, family="lstm"),
+    )
     for name in ("model.onnx", "model.torchscript.pt"):
         (export / name).write_bytes(b"0" * 2048)
     return {"summary": root / "summary.json", "leads_figure": _png(root / "leads.png", 40),
@@ -535,9 +536,14 @@ def finished_run_report(run: tuple[Path, dict, list]) -> Path:
     return run[0] / "results" / "report.html"
 
 
-@pytest.fixture(params=["synthetic_report", "finished_run_report"])
+@pytest.fixture(
+    params=[
+        "synthetic_report",
+        pytest.param("finished_run_report", marks=pytest.mark.workflow),
+    ]
+)
 def report_html(request: pytest.FixtureRequest) -> Path:
-    """Each report in turn."""
+    """Each report in turn (the finished run's only in workflow runs: it needs the toy run)."""
     return request.getfixturevalue(request.param)
 
 

@@ -110,9 +110,28 @@ def test_clean_condition_reproduces_the_clean_evaluation(dataset, tmp_path: Path
     assert noisy["auprc"][0] != got["proxy"]
 
 
-def test_robustness_figure_draws_curves_and_says_when_undefined(tmp_path: Path) -> None:
-    """The figure is written for a defined table and for one whose AUPRC is undefined."""
-    from graspstab.learning.figures.robustness import plot_robustness
+def test_robustness_figure_draws_curves_and_says_when_undefined(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A defined table: each panel draws the scorers' curves and the chance line. An undefined
+    AUPRC (NaN, JSON null in the study's files): each panel says "AUPRC undefined" and draws no
+    curve, chance line or legend; the report's table reads null as undefined, never a number."""
+    from graspstab.learning.figures import robustness
+    from graspstab.learning.presentation import UNDEFINED
+    from graspstab.report.sensing import condition_table
+
+    figures = {}
+    save = robustness.save
+
+    def keep(fig, path, dpi):  # the figure as drawn, before it is written and closed
+        figures[Path(path).name] = [(ax.get_title(), len(ax.containers),
+                                     [line.get_linestyle() for line in ax.lines],
+                                     [t.get_text() for t in ax.texts], ax.get_legend())
+                                    for ax in fig.axes if ax.get_visible()]  # fmt: skip
+        return save(fig, path, dpi)
+
+    monkeypatch.setattr(robustness, "save", keep)
+    plot_robustness = robustness.plot_robustness
 
     rows = [
         {
@@ -140,8 +159,25 @@ def test_robustness_figure_draws_curves_and_says_when_undefined(tmp_path: Path) 
     ]
     table = pl.DataFrame(rows)
     assert plot_robustness(table, 0.5, tmp_path / "a.png").stat().st_size > 1000
+    # one panel per curve, each with the CNN's and the proxy's points (the clean point at the
+    # curve's "off" end) and the dotted chance line
+    assert sorted(p[0] for p in figures["a.png"]) == ["noise", "rate"]
+    for _, errorbars, styles, texts, _ in figures["a.png"]:
+        assert errorbars == 2 and ":" in styles and "AUPRC undefined" not in texts
+    assert figures["a.png"][0][4] is not None  # the legend names them
     undefined = table.with_columns(pl.lit(float("nan")).alias("auprc"))
-    assert plot_robustness(undefined, float("nan"), tmp_path / "b.png").exists()
+    png = plot_robustness(undefined, float("nan"), tmp_path / "b.png")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p[0] for p in figures["b.png"]) == ["noise", "rate"]
+    for _, errorbars, styles, texts, legend in figures["b.png"]:
+        assert (errorbars, styles, texts, legend) == (0, [], ["AUPRC undefined"], None)
+    # the summary's undefined mean arrives as JSON null: the table says so
+    summary = [{"kind": r["kind"], "corruption": r["corruption"], "strength": r["strength"],
+                "family": r["family"], "training": r["training"], "auprc_mean": None,
+                "auprc_std": None, "runs": 1} for r in rows]  # fmt: skip
+    summary = json.loads(json.dumps(summary))
+    _, table_rows = condition_table(summary, ("clean", "curve"))
+    assert [r[2:] for r in table_rows] == [[UNDEFINED, UNDEFINED]] * 3
 
 
 def test_augmentation_passes_training_windows_through_drawn_sensors(dataset) -> None:

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -39,6 +40,19 @@ def _with(config: list[str], old: str, new: str) -> list[str]:
     """The config list with one --config item replaced (--config keys do not merge)."""
     assert old in config
     return [new if item == old else item for item in config]
+
+
+def _copy_run(source: Path, dest: Path, *leave_out: str) -> Path:
+    """A copy of the finished run at ``source`` (results, resources, Snakemake's metadata) that a
+    test may run Snakemake in without touching the shared run, less the files and folders named
+    ``leave_out``. Its cache is seeded with every entry of the run's, hard-linked: entries are
+    never written in place (a store renames a new folder in, a restore copies out), so that part
+    costs no disk and what the test stores lands in the copy alone."""
+    cache = ".graspstab-cache"
+    skip = shutil.ignore_patterns(cache, "locks", "incomplete", *leave_out)
+    shutil.copytree(source, dest, symlinks=True, ignore=skip)
+    shutil.copytree(source / cache, dest / cache, symlinks=True, copy_function=os.link)
+    return dest
 
 
 @pytest.mark.workflow
@@ -226,25 +240,28 @@ ALTERNATIVES = ["contact=strict", "labels={settle: {require: both}}"]
 
 @pytest.mark.workflow
 def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
-    """The whole DAG runs with the strict model, no squeeze and the `both` reading, and each shows
-    in what it made: the replays' metadata, the settle rules and the report. Eq. 16's energy
-    runs through annealing, replay and labelling: at toy scale, with the strict model and no
-    squeeze too, its deep grasps leave no training window. Preprocessing comes from the toy run's
-    cache."""
+    """The DAG runs to the report with the strict model, no squeeze and the `both` reading, and
+    each shows in what it made: the replays' metadata, the settle rules and the report. Eq. 16's
+    energy runs through annealing, replay and labelling: at toy scale, with the strict model and
+    no squeeze too, its deep grasps leave no training window. Both in copies of the toy run, so
+    Snakemake reruns what the options change and no more: the alternative protocol leaves the
+    hand, the objects and the grasps alone, the energy reruns from annealing on."""
     import polars as pl
 
     from graspstab.common.io import read_parquet_metadata
 
     workdir, env, config = run
-    env = dict(env, GRASPSTAB_CACHE_DIR=str(workdir / ".graspstab-cache"))
-    alt = tmp_path / "alt"
+    # without the toy run's creep-free, sensing and audit outputs: this run has none of them
+    alt = _copy_run(workdir, tmp_path / "alt", "creep_free", "sensing", "inputs")
     alt_config = _with(_with(config, TOY_REPLAY, ALT_REPLAY), TOY_CREEP_FREE,
                        "creep_free={enabled: false}")  # fmt: skip
     alt_config += ["sensing={robustness: false}", "audit={enabled: false}"]
     proc = _snakemake(alt, "results/report.html", *alt_config, *ALTERNATIVES, env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
-    log = (alt / "results" / "logs" / "preprocess_object" / f"{OBJECT}.log").read_text()
-    assert log.startswith("graspstab cache: restored")
+    rules = {j["rule"] for j in listed_jobs(proc.stdout + proc.stderr)}
+    assert {"replay_grasps", "label_windows", "train_model", "export_monitor", "report"} <= rules
+    upstream = {"fetch_ycb_object", "build_hand", "preprocess_object", "anneal_grasps"}
+    assert not rules & upstream, rules & upstream
     meta = read_parquet_metadata(alt / "results" / "replay" / OBJECT / "replays_0.parquet")
     assert meta["contact_model"] == "strict" and meta["squeeze_rad"] == 0.0
     assert meta["mujoco_version"] and meta["provenance"]["params"]["contact"]["impratio"] == 10.0
@@ -264,9 +281,12 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
     base_speeds = json.loads((workdir / "results" / "datasets" / "speeds.json").read_text())
     assert base_speeds["box_creep"]["speed"] > speeds["v_slip"]  # reference: creeps
     # eq. 16's energy (the quick profile uses ours): annealing, replay and labelling
-    ref = tmp_path / "ref_energy"
+    ref = _copy_run(workdir, tmp_path / "ref_energy")
     proc = _snakemake(ref, "results/datasets/speeds.json", *config, "energy=reference", env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
+    rules = {j["rule"] for j in listed_jobs(proc.stdout + proc.stderr)}
+    assert {"anneal_grasps", "replay_grasps", "label_windows"} <= rules
+    assert not rules & {"fetch_ycb_object", "build_hand", "preprocess_object"}
     grasps = read_parquet_metadata(ref / "results" / "grasps" / OBJECT / "shard_0.parquet")
     assert grasps["provenance"]["params"]["energy"]["name"] == "reference"
     assert grasps["provenance"]["params"]["energy"]["weights"]["hpen"] == 0.0
@@ -282,10 +302,10 @@ def test_alternative_protocol_options_run_end_to_end(run, tmp_path):
         ("labels={label_low: 0.7, label_high: 0.3}", ["labels.label_low", "label_high"]),
     ],
 )
-def test_bad_config_stops_at_load_time(tmp_path, ycb_dir, hand_assets_dir, override, named):
-    # a real run, not a dry one: it must stop before any job, leaving no results/ behind
-    env = dict(os.environ, GRASPSTAB_YCB_DIR=str(ycb_dir), GRASPSTAB_HAND_DIR=str(hand_assets_dir))
-    proc = _snakemake(tmp_path, "results/report.html", "--config", override, env=env)
+def test_bad_config_stops_at_load_time(tmp_path, asset_env, override, named):
+    # a real run, not a dry one, with the assets at hand: it must stop before any job, leaving no
+    # results/ behind
+    proc = _snakemake(tmp_path, "results/report.html", "--config", override, env=asset_env)
     assert proc.returncode != 0
     out = proc.stdout + proc.stderr
     assert all(text in out for text in named), out[-2000:]
@@ -329,7 +349,7 @@ def test_learning_studies(run):
 def readme_monitor_example() -> str:
     """The README's example of loading an exported model and feeding it frames."""
     text = (REPO / "README.md").read_text()
-    after = text[text.index("Load one and feed it frames:"):]
+    after = text[text.index("Load one and feed it frames:") :]
     return re.search(r"```python\n(.*?)```", after, flags=re.S).group(1)
 
 
@@ -365,7 +385,8 @@ def test_monitor_exports_and_grasp_level_evaluation(run):
         assert scorer.constants.window_steps == 400
         assert load_torchscript(export / "model.torchscript.pt").constants.family == name[9:]
         assert json.loads((export / "constants.json").read_text())["threshold"] == (
-            scorer.constants.threshold)
+            scorer.constants.threshold
+        )
     choice = json.loads((res / "studies" / "sweep" / "summary.json").read_text())["choice"]
     pick = load_onnx(res / "monitor" / "export" / "pick" / "model.onnx").constants
     assert pick.family == choice["pick"]["family"]
@@ -420,6 +441,7 @@ def test_sensor_robustness_study(run):
     assert "evaluate_sensor_robustness" in {j["rule"] for j in jobs}
 
 
+@pytest.mark.workflow
 def test_input_audit(run):
     """The quick profile's input audit: the LSTM on forces (the baseline run), normal, shear,
     normal + the shear's two components and forces + object state, with 10, 5, 5, 15 and 16
@@ -440,6 +462,7 @@ def test_input_audit(run):
     assert 'id="input-audit"' in html and "Input audit: test AUPRC and parameters" in html
 
 
+@pytest.mark.workflow
 def test_learning_rate_change_reruns_that_model_only(run):
     workdir, env, config = run
     changed = [*config, "model={gru: {learning_rate: 0.002}}"]
@@ -542,9 +565,10 @@ def _assert_same_replays(reference: Path, other: Path) -> None:
 
 @pytest.mark.workflow
 def test_run_killed_mid_replay_resumes_to_identical_outputs(run, tmp_path):
-    """SIGKILL the whole Snakemake process group while replays run, restart, compare with the
-    uninterrupted run."""
-    import shutil
+    """SIGKILL the whole Snakemake process group while a replay job is mid-shard, restart,
+    compare with the uninterrupted run. The kill point is fixed, not raced: a gate
+    (tests/replay_gate.py, as the run's sitecustomize) holds the first replay job to reach its
+    second grasp until the kill, after it says so in a file."""
     import signal
     import time
 
@@ -559,26 +583,36 @@ def test_run_killed_mid_replay_resumes_to_identical_outputs(run, tmp_path):
     tables = (workdir / "results" / "replay").rglob("replays_*.parquet")
     targets = sorted(str(p.relative_to(workdir)) for p in tables)
     assert len(targets) == 8
+    site, gate = tmp_path / "site", tmp_path / "gate"
+    site.mkdir()
+    gate.mkdir()
+    shutil.copyfile(REPO / "tests" / "replay_gate.py", site / "sitecustomize.py")
+    path = os.pathsep.join(p for p in (str(site), env.get("PYTHONPATH")) if p)
+    gated = dict(env, PYTHONPATH=path, GRASPSTAB_TEST_REPLAY_GATE=str(gate))
     cmd = [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(killed),
            "--cores", "2", *targets, *config]  # fmt: skip
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True)  # fmt: skip
-    logs = killed / "results" / "logs" / "replay_grasps"
-    deadline = time.monotonic() + 300
+    log = tmp_path / "killed_run.log"
+    with log.open("w") as out:
+        proc = subprocess.Popen(cmd, env=gated, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True)  # fmt: skip
     try:
-        # kill once a replay has started computing (its log has content) and before all are done
-        while time.monotonic() < deadline and proc.poll() is None:
-            if logs.is_dir() and any(p.stat().st_size > 0 for p in logs.glob("*.log")):
-                break
+        # the gated job cannot finish, so neither can the run: wait for the gate's word (the
+        # limit only turns a run that dies or hangs before the gate into a failure)
+        deadline = time.monotonic() + 600
+        while not (gate / "blocked").exists():
+            ended = proc.poll() is not None
+            assert not ended, f"the run ended before the gate: {log.read_text()[-3000:]}"
+            assert time.monotonic() < deadline, "no replay reached the gate in 600 s"
             time.sleep(0.05)
-        assert proc.poll() is None, "the run finished before it could be killed"
+        assert proc.poll() is None
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=30)
     done = [t for t in targets if (killed / t).exists()]
-    assert len(done) < len(targets)  # the kill interrupted the replays
+    assert len(done) < len(targets)  # the gated shard at least was interrupted
     # a hard kill leaves Snakemake's lock behind: release it as a user would (README)
     unlock = _snakemake(killed, "--unlock", *targets, *config, env=env)
     assert unlock.returncode == 0, unlock.stderr[-3000:]
@@ -594,11 +628,12 @@ def _expensive_outputs(workdir: Path, jobs: list[dict]) -> dict[str, bytes]:
 
 
 @pytest.mark.workflow
-def test_reverted_change_is_found_by_content(run):
+def test_reverted_change_is_found_by_content(run, tmp_path):
     """Change an annealing parameter, run, revert it, run again: every expensive job of the
-    second run restores its earlier outputs, byte for byte, instead of recomputing. (Last in
-    this module: it rewrites the shared run's results, with the same content.)"""
-    workdir, env, config = run
+    second run restores its earlier outputs, byte for byte, instead of recomputing. On a copy of
+    the toy run (its results, cache and Snakemake metadata), which the other tests never see."""
+    shared, env, config = run
+    workdir = _copy_run(shared, tmp_path / "wf")
     all_jobs = _dry_jobs(workdir, config, env, "--forceall")
     before = _expensive_outputs(workdir, all_jobs)
     changed = _with(config, TOY_SYNTHESIS, TOY_SYNTHESIS.replace("1500", "1400"))
@@ -609,15 +644,18 @@ def test_reverted_change_is_found_by_content(run):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert _expensive_outputs(workdir, all_jobs) != before  # the change did change the results
 
-    proc = _snakemake(workdir, "results/report.html", *config, env=env)
+    # the reverted run asks for every expensive job's outputs (and so runs whatever they need),
+    # not for the report: the cheap jobs downstream of them (figures, the extensions' studies,
+    # the report) have no cache and would only recompute
+    targets = sorted({p for j in all_jobs if j["rule"] in EXPENSIVE for p in j["output"]})
+    proc = _snakemake(workdir, *targets, *config, env=env)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     ran = [j for j in listed_jobs(proc.stdout + proc.stderr) if j["rule"] in EXPENSIVE]
-    assert {"anneal_grasps", "replay_grasps", "train_model", "tune_model"} <= {
-        j["rule"] for j in ran
-    }
+    # every expensive rule downstream of annealing ran, and each job restored its outputs
+    assert {j["rule"] for j in ran} == EXPENSIVE - {"preprocess_object"}
     for job in ran:
         log_text = (workdir / job["log"][0]).read_text()
         assert log_text.startswith("graspstab cache: restored"), (job, log_text[:500])
     assert _expensive_outputs(workdir, all_jobs) == before
-    again = _snakemake(workdir, "results/report.html", "--dry-run", *config, env=env)
+    again = _snakemake(workdir, *targets, "--dry-run", *config, env=env)
     assert "Nothing to be done" in again.stdout + again.stderr

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import fcntl
+import json
+import os
 import re
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -36,8 +40,16 @@ TOY_LEARNING = [
     "splits={count: 2, seeds: [42]}",
     "latency={repeats: 5, warmup: 1}",
 ]
-CONFIG = ["--config", OBJECTS, SPLITS, FAST, TOY_SYNTHESIS, TOY_REPLAY, TOY_CREEP_FREE,
-          *TOY_LEARNING]
+CONFIG = [
+    "--config",
+    OBJECTS,
+    SPLITS,
+    FAST,
+    TOY_SYNTHESIS,
+    TOY_REPLAY,
+    TOY_CREEP_FREE,
+    *TOY_LEARNING,
+]
 
 
 def snakemake_run(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
@@ -54,6 +66,31 @@ def snakemake_run(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.
         *args,
     ]
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
+
+
+def shared_toy_run(tmp_path_factory: Any, env: dict[str, str]) -> tuple[Path, dict, list]:
+    """The toy run (``results/report.html`` at CONFIG), built once per pytest session however many
+    xdist workers ask for it: the first to ask builds it under a file lock in the session's
+    shared temporary folder, the others wait for the lock and reuse it (a failed build is
+    reported to each, not retried). Serially the folder is the session's own.
+    (workdir, env, config), as tests/conftest.py's ``run`` returns it."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # the workers' folders sit in the session's
+        root = root.parent
+    workdir, record = root / "toy_run", root / "toy_run.json"
+    with open(root / "toy_run.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not record.is_file():
+                workdir.mkdir(exist_ok=True)
+                proc = snakemake_run(workdir, "results/report.html", *CONFIG, env=env)
+                tail = proc.stdout[-4000:] + proc.stderr[-4000:]
+                record.write_text(json.dumps({"returncode": proc.returncode, "tail": tail}))
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    built = json.loads(record.read_text())
+    assert built["returncode"] == 0, built["tail"]
+    return workdir, env, CONFIG
 
 
 def listed_jobs(text: str) -> list[dict]:

@@ -30,6 +30,9 @@ rule fetch_ycb_object:
 
 
 rule fetch_hand_description:
+    input:
+        # the user's own checksum manifest (assets.hand_manifest), if any: editing it refetches
+        manifest=config["assets"]["hand_manifest"] or [],
     output:
         directory("resources/orcahand_description"),
     params:

@@ -1,4 +1,4 @@
-# The creep-free benchmark (our extension, README "Load ramp"): the run's own grasps replayed a
+# The creep-free benchmark (our extension, docs/protocols.md "The creep-free load ramp"): the run's own grasps replayed a
 # second time under the strict contact model with the load ramp, then the baseline task, the
 # friction-ratio proxy and the window sweep on its datasets, set beside the main run in the report.
 # Included only when creep_free.enabled. Every rule is the main run's rule with its paths under

@@ -1,4 +1,4 @@
-# Grasp-level warnings (our extension, README "Streaming monitor"): the trained models exported for
+# Grasp-level warnings (our extension, docs/extensions.md "Streaming monitor and grasp-level warnings"): the trained models exported for
 # deployment (TorchScript, ONNX, constants beside), and a streaming monitor of each family and of
 # the friction-ratio proxy run over every validation and test replay, scored grasp by grasp.
 

@@ -20,5 +20,5 @@ def compute() -> None:
     )  # fmt: skip
 
 
-# Content-addressed: restored from the cache when the same job ran before (README, "Caching").
+# Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 run_cached(sm, ("monitor",), compute)

@@ -19,5 +19,5 @@ def compute() -> None:
                log_file=sm.log[0])  # fmt: skip
 
 
-# Content-addressed: restored from the cache when the same job ran before (README, "Caching").
+# Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 run_cached(sm, ("monitor",), compute)

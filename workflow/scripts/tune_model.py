@@ -22,5 +22,5 @@ def compute() -> None:
     )
 
 
-# Content-addressed: restored from the cache when the same job ran before (README, "Caching").
+# Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 run_cached(sm, ("learning",), compute)

@@ -49,6 +49,24 @@ def load_manifest() -> dict[str, str]:
     return dict(json.loads(text))
 
 
+def read_manifest(path: str | os.PathLike[str]) -> dict[str, str]:
+    """A user's manifest file (config ``assets.hand_manifest``): a JSON object mapping paths under
+    the description root to sha256 digests; :class:`AssetError` naming the file otherwise."""
+    where = f"ORCA hand manifest {path} (config key assets.hand_manifest)"
+    try:
+        data = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise AssetError(f"{where}: no such file; fix the path, or set it to null") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise AssetError(f"{where} is not readable JSON ({exc}); fix the file") from None
+    if not isinstance(data, dict) or not data:
+        raise AssetError(f"{where} must be a non-empty JSON object {{path: sha256}}; fix the file")
+    manifest: dict[str, str] = {}
+    for rel, sha in data.items():
+        manifest[str(rel)] = normalise_sha256(sha, f"{where}, entry {rel}") or ""
+    return manifest
+
+
 def build_manifest(description_dir: str | os.PathLike[str]) -> dict[str, str]:
     """Manifest of a local description copy: every right-hand STL plus the upstream MJCF files.
 

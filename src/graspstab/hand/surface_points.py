@@ -1,11 +1,11 @@
 """Points covering every colliding hand link's surface, for the hand-in-object penetration term.
 
-The reference's penetration energy (3.1.4, eq. 11) looks one way only: object hull points inside
-the hand's capsules. A link that has passed wholly into the object holds no hull point and costs
-nothing, and the annealer exploits that (README, "Grasp synthesis"). Our added term E_hpen looks
-the other way, at these points inside the object. They lie on the convex hull of each collision
-geom, because that hull is what MuJoCo collides (so a grasp that keeps them outside the object
-also keeps MuJoCo's contacts shallow), and are thinned from a dense area-uniform sample by
+The reference's penetration energy (3.1.4, eq. 11) looks one way only: object hull points inside the
+hand's capsules. A link that has passed wholly into the object holds no hull point and costs
+nothing, and the annealer exploits that (docs/protocols.md, "Annealing energies"). Our added term
+E_hpen looks the other way, at these points inside the object. They lie on the convex hull of each
+collision geom, because that hull is what MuJoCo collides (so a grasp that keeps them outside the
+object also keeps MuJoCo's contacts shallow), and are thinned from a dense area-uniform sample by
 farthest-point sampling until every sample lies within ``cover_radius`` of a kept point (so every
 hull point lies within about ``cover_radius`` plus the dense spacing, ~1.4 mm at 50 per cm^2): an
 object edge can reach at most about that far into a link between two kept points.

@@ -1,9 +1,9 @@
-"""Alternative model inputs for the input audit (our extension, issue 17): the baseline dataset's
+"""Alternative model inputs for the input audit (our extension): the baseline dataset's
 windows with other channels, read from the replay traces at the same starts, labels and splits.
 
 Table 4.2's parameter counts are exactly what the three architectures give with 16 inputs per
-timestep, not the 10 of the text (README "Sensor realism"), so the audit trains the baseline
-configurations on:
+timestep, not the 10 of the text (docs/extensions.md "Input audit"), so the audit trains the
+baseline configurations on:
 
 * ``forces``: eq. 19's 5 fingertips x (normal, shear), 10 inputs (the baseline dataset itself);
 * ``normal`` and ``shear``: one of the two channels, 5 inputs;

@@ -1,7 +1,7 @@
 """What "unstable" means under the run's contact model: object speeds behind the labels (3.3.2).
 
 Eq. 23 labels a timestep unstable at ||v|| >= 1.2 mm/s. Whether such a window announces a drop or
-a held object's soft-contact creep depends on the contact model (README "Grasp replay"),
+a held object's soft-contact creep depends on the contact model (docs/pipeline.md "Grasp replay"),
 so the report sets, side by side: the creep of a statically held box under the model in use
 (:func:`graspstab.replay.creep.box_creep`), the creep of the run's own grasps still held at the
 end, and the median object speed over each labelled window's target interval (eq. 29's T_s).

@@ -7,8 +7,9 @@ whose receptive field lies inside the window is the same value the previous wind
 position further on: it is computed once, when its last input frame arrives, and kept in a ring.
 A score then recomputes only the positions the padding reaches (a few per layer and end) and sums
 the pooled layer. At the 0.2 s baseline (400 frames, kernels 5, 5, 3) that is 21 positions of the
-last layer in place of 400 (README "Streaming monitor"). It is the batch model's arithmetic in
-another order, so its probabilities equal the batch model's to float tolerance (tests).
+last layer in place of 400 (docs/extensions.md, "Per-frame cost"). It is the batch model's
+arithmetic in another order, so its probabilities equal the batch model's to float tolerance
+(tests).
 
 BatchNorm is folded into its convolution (eval mode: a per-channel affine map); Dropout is the
 identity in eval mode. Computed with NumPy float32 (single-row BLAS calls have far less overhead

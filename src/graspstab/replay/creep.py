@@ -1,4 +1,4 @@
-"""Creep of a statically held object under a contact model (3.2; README "Grasp replay").
+"""Creep of a statically held object under a contact model (3.2; docs/pipeline.md "Grasp replay").
 
 MuJoCo's soft contacts let a held object slide slowly by design; whether that creep is far below
 eq. 23's 1.2 mm/s or of its order decides what "unstable" means. Two measurements:

@@ -1,6 +1,7 @@
 """The report's side-by-side section: the reference's gravity replay and the creep-free load ramp
-on the same grasps (README "Load ramp"), and which of the reference's conclusions hold under each,
-decided from the measured numbers by the rules written out in :data:`CONCLUSIONS`.
+on the same grasps (docs/protocols.md, "The creep-free load ramp"), and which of the reference's
+conclusions hold under each, decided from the measured numbers by the rules written out in
+:data:`CONCLUSIONS`.
 """
 
 from __future__ import annotations

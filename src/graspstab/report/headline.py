@@ -257,8 +257,8 @@ def scale_sentence(scale: Mapping[str, Any]) -> str:
             f"Replay protocol: contact model <b>{H.esc(proto['contact'])}</b>, energy "
             f"<b>{H.esc(proto['energy'])}</b>, squeeze {proto['squeeze']:g} rad, settle reading "
             f"'{H.esc(proto['settle'])}'; "
-            + (f"deviations from the reference: {H.esc(', '.join(dev))} (README \"Replay "
-               "protocols\" gives what each changes). " if dev else
+            + (f"deviations from the reference: {H.esc(', '.join(dev))} (docs/protocols.md "
+               "gives what each changes). " if dev else
                "the reference's choices throughout. ")
         )  # fmt: skip
     chance = scale.get("test_unstable_share")

@@ -83,7 +83,8 @@ def sensing_section(sensing: Mapping[str, Any] | None, config: Mapping[str, Any]
         "score test windows that came through a sensor model: a delay, a gain error per fingertip "
         "and channel, a bias drift, white noise, a converter's quantisation, sampling at the "
         "sensor's rate with a zero-order hold back onto the 2 kHz grid, and dropped samples "
-        '(README "Sensor realism"). Each condition draws its sensed windows once; every scorer '
+        '(docs/extensions.md, "Sensor realism"). Each condition draws its sensed windows once; '
+        "every scorer "
         f"reads the same ones. Test split: {info['n']} windows, {info['n_unstable']} unstable "
         f"(chance AUPRC {_pct(info['chance'])} %); models at seed(s) "
         f"{', '.join(map(str, seeds))} (mean ± std over seeds). Columns marked 'through "

@@ -170,7 +170,8 @@ def _synthesis_parts(
     parts = [
         H.heading(2, "synthesis", "Grasp synthesis"),
         _synthesis_section([read_json(p) for p in grasp_summaries], bench),
-        '<p class="note">Two deliberate deviations from eq. 16 (README, "Grasp synthesis"): with '
+        '<p class="note">Two deliberate deviations from eq. 16 (docs/protocols.md, '
+        '"Annealing energies"): with '
         "the reference's energy the annealed grasps straddle the surface, fingertips within a "
         "millimetre of it while finger links sink in by centimetres, because E_fc over all 120 "
         "candidate normals rewards pushing candidates through the object and eq. 11 cannot see "
@@ -441,8 +442,8 @@ def _protocols_parts(
             H.heading(2, "protocols", "Two protocols side by side: gravity and the load ramp"),
             '<p class="note">This run has no creep-free benchmark (creep_free.enabled is false). '
             "<code>--config 'creep_free={enabled: true}'</code> replays the same grasps under the "
-            'strict contact model with a rising load and sets the two side by side here (README '
-            '"Load ramp").</p>',
+            "strict contact model with a rising load and sets the two side by side here "
+            '(docs/protocols.md, "The creep-free load ramp").</p>',
         ]
     main = Benchmark(
         name=f"gravity ({config['replay']['contact']['name']} contact model)",

@@ -17,8 +17,8 @@ TERMS = E.WEIGHT_KEYS
 
 class GraspEnergy:
     """E(g) = w_dis E_dis + w_fc E_fc + w_pen E_pen + w_spen E_spen + w_joint E_joint (3.1.4),
-    plus w_hpen E_hpen (hand surface points inside the object; our addition, README "Grasp
-    synthesis")."""
+    plus w_hpen E_hpen (hand surface points inside the object; our addition,
+    docs/protocols.md "Annealing energies")."""
 
     def __init__(
         self,

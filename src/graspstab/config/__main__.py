@@ -1,0 +1,50 @@
+"""``python -m graspstab.config show|reference``: the resolved configuration, the reference page."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from graspstab.config import reference
+from graspstab.config import show as show_mod
+from graspstab.config.errors import ConfigError
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand; a configuration error is one line on stderr and exit status 2."""
+    parser = argparse.ArgumentParser(prog="python -m graspstab.config", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    show = sub.add_parser(
+        "show",
+        help="print the resolved configuration as YAML",
+        description="Print the configuration `snakemake --config KEY=VALUE ...` would run, "
+        "composed and validated as the Snakefile does (asset files are not checked).",
+    )
+    show.add_argument("entries", nargs="*", metavar="KEY=VALUE", help="as for snakemake --config")
+    show.add_argument("--key", help="print only this subtree (dotted path, e.g. train.threshold)")
+    ref = sub.add_parser(
+        "reference", help="print the configuration reference page (docs/configuration.md)"
+    )
+    for p in (show, ref):
+        p.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
+        p.add_argument(
+            "--schema",
+            help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
+        )
+    args = parser.parse_args(argv)
+    try:
+        config_dir, schema = show_mod.locate(args.config_dir, args.schema)
+        if args.command == "reference":
+            sys.stdout.write(reference.render(config_dir, schema))
+            return 0
+        cfg = show_mod.resolved(config_dir, schema, args.entries)
+        sys.stdout.write(show_mod.dump(show_mod.subtree(cfg, args.key) if args.key else cfg))
+    except ConfigError as exc:
+        message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"graspstab configuration error: {message}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,217 @@
+"""The configuration reference page cannot drift or miss a key, and `show` prints what loads."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from graspstab.config import load_config
+from graspstab.config.reference import COMMAND, NO_DESCRIPTION, render
+from graspstab.config.show import _parse_config, parse_snakemake_config
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIG_DIR = REPO / "config"
+SCHEMA = REPO / "workflow" / "schemas" / "config.schema.yaml"
+PAGE = REPO / "docs" / "configuration.md"
+ENV_VARIABLES = ("GRASPSTAB_YCB_DIR", "GRASPSTAB_HAND_DIR", "GRASPSTAB_CACHE_DIR")
+
+
+@pytest.fixture(scope="module")
+def page() -> str:
+    return PAGE.read_text()
+
+
+@pytest.fixture(scope="module")
+def schema() -> dict[str, Any]:
+    return yaml.safe_load(SCHEMA.read_text())
+
+
+@pytest.fixture(scope="module")
+def default_cfg() -> dict[str, Any]:
+    return load_config(CONFIG_DIR, SCHEMA, {}, check_files=False)
+
+
+def _resolve(node: dict[str, Any], schema: dict[str, Any]) -> dict[str, Any]:
+    """``node`` with its ``$ref`` merged in (sibling properties added to the target's)."""
+    while "$ref" in node:
+        target = schema["$defs"][node["$ref"].rsplit("/", 1)[-1]]
+        props = {**target.get("properties", {}), **node.get("properties", {})}
+        node = {**target, **{k: v for k, v in node.items() if k != "$ref"}, "properties": props}
+    return node
+
+
+def _documented_paths(value: Any, node: dict[str, Any], schema: dict[str, Any], path: str = ""):
+    """The row each leaf of the config needs: its own, or its entry's in a mapping of free names
+    (object ids, presets, searched parameters), whose fields are shown inline."""
+    node = _resolve(node, schema)
+    if not isinstance(value, dict):
+        yield path
+        return
+    props = node.get("properties") or {}
+    for key, sub in value.items():
+        child = f"{path}.{key}" if path else str(key)
+        if key in props:
+            yield from _documented_paths(sub, props[key], schema, child)
+        else:
+            yield child
+
+
+def _schema_leaf_paths(node: dict[str, Any], schema: dict[str, Any], path: str = ""):
+    """Every schema property path with no properties below it; a free name is ``<...>``."""
+    node = _resolve(node, schema)
+    props = node.get("properties") or {}
+    extra = node.get("additionalProperties")
+    if not props and not isinstance(extra, dict):
+        yield path
+    for key, sub in props.items():
+        yield from _schema_leaf_paths(sub, schema, f"{path}.{key}" if path else key)
+    if isinstance(extra, dict):
+        yield from _schema_leaf_paths(extra, schema, f"{path}.<*>")
+
+
+def _cli(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "graspstab.config", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+# The page.
+
+
+def test_page_is_generated(page):
+    assert render(CONFIG_DIR, SCHEMA) == page, (
+        f"docs/configuration.md is out of date with config/ or the schema: run `{COMMAND}` "
+        "from the repository root"
+    )
+
+
+def test_page_does_not_depend_on_the_environment(page, monkeypatch, tmp_path):
+    for name in ENV_VARIABLES:
+        monkeypatch.setenv(name, str(tmp_path / name))
+    assert render(CONFIG_DIR, SCHEMA) == page
+
+
+def test_every_leaf_of_the_default_config_has_a_row(page, schema, default_cfg):
+    missing = [
+        p for p in _documented_paths(default_cfg, schema, schema) if f"| `{p}` |" not in page
+    ]
+    assert not missing, f"keys without a row in docs/configuration.md: {missing}; run `{COMMAND}`"
+
+
+def test_every_schema_property_has_a_row(page, schema):
+    rows = set(re.findall(r"^\| `([^`]+)` \|", page, flags=re.M))
+    pattern = {re.sub(r"<\w+>", "<*>", r) for r in rows}
+    missing = [p for p in _schema_leaf_paths(schema, schema) if p not in pattern]
+    assert not missing, f"schema keys without a row in docs/configuration.md: {missing}"
+
+
+def test_every_row_is_described_and_timeless(page):
+    undescribed = [
+        line.split("|")[1].strip() for line in page.splitlines() if NO_DESCRIPTION in line
+    ]
+    assert not undescribed, (
+        f"keys without a description: {undescribed}; add a comment beside the key in its "
+        f"config/<group>/ file (or a description in the schema), then run `{COMMAND}`"
+    )
+    assert not re.search(r"\bissues?\b", page, flags=re.I), "the page names an issue: reword it"
+
+
+def test_profiles_are_listed(page):
+    for profile in ("quick", "study", "thesis"):
+        assert f"### {profile}" in page
+    # keys the study profile file sets appear in its table
+    study = page.split("### study", 1)[1].split("### thesis", 1)[0]
+    assert "| `creep_free.seeds` | `null` | `[42]` |" in study
+    assert "| group `energy` | `reference` | `hpen` |" in study
+
+
+# `KEY=VALUE` parsing: snakemake's own parser, and the fallback restating it.
+
+
+ENTRIES = ["profile=study", "train={seeds: [1, 2]}", "seed=7", "overrides=[labels.window_s=0.3]",
+           "flag=True", "rate=0.5", "empty=", "objects_list=[014_lemon, 025_mug]"]  # fmt: skip
+
+
+def test_entries_parse_as_snakemake_parses_them():
+    parse_config = pytest.importorskip("snakemake.cli").parse_config
+    assert parse_snakemake_config(ENTRIES) == parse_config(ENTRIES)
+    assert _parse_config(ENTRIES) == parse_config(ENTRIES)
+    assert parse_snakemake_config(ENTRIES)["train"] == {"seeds": ["1", "2"]}  # BaseLoader strings
+
+
+# The CLI.
+
+
+def test_show_round_trips_to_load_config(default_cfg):
+    out = _cli("show")
+    assert out.returncode == 0, out.stderr
+    assert yaml.safe_load(out.stdout) == default_cfg
+
+
+def test_show_profile_study_sets_what_the_profile_says(default_cfg):
+    out = _cli("show", "profile=study")
+    assert out.returncode == 0, out.stderr
+    cfg = yaml.safe_load(out.stdout)
+    study = yaml.safe_load((CONFIG_DIR / "profile" / "study.yaml").read_text())
+    study.pop("defaults")
+
+    def leaves(tree: dict[str, Any], prefix: str = ""):
+        for key, value in tree.items():
+            path = f"{prefix}{key}"
+            if isinstance(value, dict):
+                yield from leaves(value, f"{path}.")
+            else:
+                yield path, value
+
+    def get(tree: Any, path: str) -> Any:
+        for part in path.split("."):
+            tree = tree[part]
+        return tree
+
+    for path, value in leaves(study):
+        assert get(cfg, path) == value, path
+    changed = [p for p, _ in leaves(study) if get(cfg, p) != get(default_cfg, p)]
+    assert {"profile_name", "train.seeds", "creep_free.enabled"} <= set(changed)
+    assert cfg["synthesis"]["energy"]["name"] == "hpen"  # its group choice
+
+
+def test_show_key_prints_one_subtree():
+    out = _cli("show", "--key", "train.threshold", "train={threshold: {min_recall: 0.8}}")
+    assert out.returncode == 0, out.stderr
+    assert yaml.safe_load(out.stdout) == {"rule": "min_recall", "min_recall": 0.8,
+                                          "grid": [0.05, 0.95, 0.005]}  # fmt: skip
+    out = _cli("show", "--key", "seed", "seed=7")
+    assert (out.returncode, out.stdout.strip()) == (0, "7")
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["show", "train={nope: 1}"], "nope"),
+        (["show", "--key", "train.nope"], "nope"),
+        (["show", "labels={label_low: 0.9}"], "label_low"),
+    ],
+)
+def test_bad_values_are_one_line_and_exit_2(args, words):
+    out = _cli(*args)
+    assert out.returncode == 2, out.stdout
+    assert "Traceback" not in out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("graspstab configuration error: "), out.stderr
+    assert words in lines[0]
+
+
+def test_outside_the_repository_says_where_to_run(tmp_path):
+    out = _cli("reference", cwd=tmp_path)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert "repository root" in out.stderr and "--config-dir" in out.stderr
