@@ -25,15 +25,19 @@ def model(hand_assets_dir: Path) -> mujoco.MjModel:
 
 
 def _upstream_copy(src: Path, dst: Path, stand_in: str) -> Path:
-    """An upstream-like layout: the *.upstream MJCF in place, a full-palm R-Carpals.stl present."""
+    """An upstream-like layout: the *.upstream MJCF in place (a local copy's; a download has the
+    upstream files already), ``stand_in`` as the full-palm R-Carpals.stl, the two meshes upstream
+    declares but no geom uses absent."""
     shutil.copytree(src, dst)
     mjcf = dst / "v2" / "models" / "mjcf"
     for name in ("orcahand_right.mjcf", "orcahand_right_body.xml"):
-        shutil.copyfile(mjcf / f"{name}.upstream", mjcf / name)
-        (mjcf / f"{name}.upstream").unlink()
+        if (mjcf / f"{name}.upstream").is_file():
+            shutil.copyfile(mjcf / f"{name}.upstream", mjcf / name)
+            (mjcf / f"{name}.upstream").unlink()
     right = dst / "v2" / "models" / "assets" / "right"
     shutil.copyfile(right / stand_in, right / "R-Carpals.stl")
-    assert not (right / "P-Assembly.stl").exists() and not (right / "T-R-Assembly.stl").exists()
+    for unused in ("P-Assembly.stl", "T-R-Assembly.stl"):
+        (right / unused).unlink(missing_ok=True)
     return dst
 
 
