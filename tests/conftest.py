@@ -45,14 +45,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def workflow_config(config: pytest.Config) -> dict[str, Any]:
     """The resolved workflow config under this session's ``--workflow-config`` overrides."""
-    from snakemake.cli import parse_config
-
     from graspstab.config import load_config
+    from graspstab.config.show import parse_snakemake_config
 
     return load_config(
         CONFIG_DIR,
         SCHEMA,
-        snakemake_config=parse_config(config.getoption("workflow_config")),
+        snakemake_config=parse_snakemake_config(config.getoption("workflow_config")),
         check_files=False,
     )
 

@@ -13,7 +13,7 @@ import yaml
 
 from graspstab.config import load_config
 from graspstab.config.reference import COMMAND, NO_DESCRIPTION, render
-from graspstab.config.show import _parse_config, parse_snakemake_config
+from graspstab.config.show import parse_snakemake_config
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG_DIR = REPO / "config"
@@ -145,7 +145,6 @@ ENTRIES = ["profile=study", "train={seeds: [1, 2]}", "seed=7", "overrides=[label
 def test_entries_parse_as_snakemake_parses_them():
     parse_config = pytest.importorskip("snakemake.cli").parse_config
     assert parse_snakemake_config(ENTRIES) == parse_config(ENTRIES)
-    assert _parse_config(ENTRIES) == parse_config(ENTRIES)
     assert parse_snakemake_config(ENTRIES)["train"] == {"seeds": ["1", "2"]}  # BaseLoader strings
 
 

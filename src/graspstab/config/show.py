@@ -14,59 +14,13 @@ SCHEMA_RELPATH = Path("workflow") / "schemas" / "config.schema.yaml"
 
 
 def parse_snakemake_config(entries: list[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` arguments parsed exactly as ``snakemake --config`` parses them."""
-    try:
-        from snakemake.cli import parse_config
-    except ImportError:  # snakemake moved its parser: the same rules, restated
-        parse_config = _parse_config
+    """``KEY=VALUE`` arguments parsed by ``snakemake --config``'s own parser."""
+    from snakemake.cli import parse_config
+
     try:
         return parse_config(entries)
     except ValueError as exc:
         raise ConfigError(f"{exc} (got {entries})") from None
-
-
-def _parse_config(entries: list[str]) -> dict[str, Any]:
-    """Snakemake 9's ``parse_config``: int, float, True/False, YAML (BaseLoader), else string."""
-    import re
-
-    def as_bool(s: str) -> bool:
-        if s in ("True", "False"):
-            return s == "True"
-        raise ValueError(s)
-
-    def base_yaml(s: str) -> Any:
-        return yaml.load(s, Loader=yaml.BaseLoader)  # BaseLoader: plain strings
-
-    config: dict[str, Any] = {}
-    for entry in entries:
-        key, sep, val = entry.partition("=")
-        if not sep:
-            raise ValueError(
-                "Invalid config definition: Config entries have to be defined as name=value pairs."
-            )
-        if not re.match(r"[a-zA-Z_][\w-]*\w$", key):
-            raise ValueError(
-                "Invalid config definition: Config entry must start with a valid identifier."
-            )
-        value: Any = None
-        if val != "":
-            for parser in (int, float, as_bool, base_yaml, str):
-                try:
-                    value = parser(val)
-                except Exception:  # the next parser, as snakemake does
-                    continue
-                if not callable(value):
-                    break
-        _update(config, {key: value})
-    return config
-
-
-def _update(config: dict[str, Any], overwrite: dict[str, Any]) -> None:
-    for key, value in overwrite.items():
-        if isinstance(value, dict) and isinstance(config.get(key), dict):
-            _update(config[key], value)
-        else:
-            config[key] = value
 
 
 def locate(config_dir: str | Path | None, schema: str | Path | None) -> tuple[Path, Path]:
