@@ -74,7 +74,7 @@ def _clone(dest: Path) -> Path:
 def _inner_pytest(clone: Path, base_url: str) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k not in ASSET_VARIABLES}
     env["PYTHONPATH"] = str(clone / "src")  # the clone's package, not the installed checkout
-    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "0", INNER]
+    cmd = [sys.executable, "-m", "pytest", "-q", "-rN", "-p", "no:cacheprovider", "-n", "0", INNER]
     cmd += ["--workflow-config", workflow_config_line(base_url)]
     return subprocess.run(cmd, cwd=clone, env=env, capture_output=True, text=True, timeout=600)
 

@@ -55,21 +55,27 @@ def _windows(batch: int, constants: MonitorConstants, seed: int) -> np.ndarray:
     return (constants.mean + 1.5 * constants.std * z).astype(np.float32)
 
 
-@pytest.fixture(scope="module", params=list(SPECS))
+# Every case through the default (trace-based) ONNX exporter; the torch.export-based one on the
+# recurrent case with the most branches (two layers, bidirectional, last-step pooling) and the CNN.
+CASES = [(name, "torchscript") for name in SPECS] + [("gru", "dynamo"), ("cnn", "dynamo")]
+
+
+@pytest.fixture(scope="module", params=CASES, ids=[f"{n}-{e}" for n, e in CASES])
 def exported(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict:
     """One small random model per case, exported to both formats with sidecars."""
     torch.set_num_threads(1)
-    spec = SPECS[request.param]
+    name, exporter = request.param
+    spec = SPECS[name]
     torch.manual_seed(0)
     model = build_model(spec).eval()
     constants = _constants(spec)
-    root = tmp_path_factory.mktemp(request.param)
+    root = tmp_path_factory.mktemp(f"{name}_{exporter}")
     files = {k: root / name for k, name in [("ts", "model.ts"), ("ts_json", "model.ts.json"),
                                            ("onnx", "model.onnx"),
                                            ("onnx_json", "model.onnx.json")]}  # fmt: skip
     export_torchscript(model, constants, files["ts"], files["ts_json"])
-    export_onnx(model, constants, files["onnx"], files["onnx_json"])
-    return {"model": model, "constants": constants, **files}
+    export_onnx(model, constants, files["onnx"], files["onnx_json"], exporter=exporter)
+    return {"model": model, "constants": constants, "exporter": exporter, **files}
 
 
 @pytest.mark.parametrize("batch", [1, 5])
@@ -98,6 +104,12 @@ def test_onnx_graph_outputs_probability_and_logit_with_a_dynamic_batch(exported:
         eager = exported["model"]((torch.from_numpy(x) - mean) / std)
     np.testing.assert_allclose(logit, eager.numpy(), rtol=0, atol=1e-5)
     np.testing.assert_allclose(prob, torch.sigmoid(eager).numpy(), rtol=0, atol=1e-6)
+    if exported["exporter"] == "torchscript":  # the recurrent layer as ONNX's own operator
+        import onnx
+
+        ops = {node.op_type for node in onnx.load(str(exported["onnx"])).graph.node}
+        family = exported["constants"].family
+        assert (family.upper() in ops) == (family != "cnn"), ops
 
 
 def test_constants_round_trip_beside_and_inside(exported: dict) -> None:
@@ -112,6 +124,7 @@ def test_constants_round_trip_beside_and_inside(exported: dict) -> None:
         assert (got.family, got.model) == (constants.family, constants.model)
     sidecar = json.loads(exported["onnx_json"].read_text())
     assert sidecar["file_format"] == "onnx" and sidecar["opset"] == export.ONNX_OPSET
+    assert sidecar["exporter"] == exported["exporter"]
     assert sidecar["provenance"]["packages"]["onnxruntime"] != "not installed"
 
 
@@ -145,9 +158,14 @@ def test_unknown_architecture_and_exporter_failure_are_clear_errors(
     def broken(*args: Any, **kwargs: Any) -> None:
         raise RuntimeError("unsupported operator aten::foo")
 
+    with pytest.raises(ExportError, match="unknown ONNX exporter 'jit'.*torchscript, dynamo"):
+        export_onnx(build_model(SPECS["cnn"]), constants, tmp_path / "x.onnx", exporter="jit")
     monkeypatch.setattr(torch.onnx, "export", broken)
-    with pytest.raises(ExportError, match="cnn model could not be exported to ONNX.*aten::foo"):
-        export_onnx(build_model(SPECS["cnn"]), constants, tmp_path / "x.onnx")
+    for exporter in export.ONNX_EXPORTERS:
+        with pytest.raises(ExportError, match=f"cnn model could not be exported to ONNX "
+                                              f"\\({exporter} exporter.*aten::foo"):  # fmt: skip
+            export_onnx(build_model(SPECS["cnn"]), constants, tmp_path / "x.onnx",
+                        exporter=exporter)  # fmt: skip
     assert not (tmp_path / "x.onnx").exists()
 
 

@@ -590,6 +590,30 @@ def test_synthetic_report_headline_and_provenance(synthetic_report: Path) -> Non
     assert re.search(r"<td>all objects</td><td>12</td><td>12</td><td>0</td><td>8</td>", html)
 
 
+def test_synthetic_report_under_the_alternative_protocol_options(
+    tmp_path: Path, snakemake_graphs: dict[str, Path]
+) -> None:
+    """The strict model, no squeeze, the `both` reading, and no sensing study or input audit, as
+    the report shows them (the toy workflow runs these options through labelling for real)."""
+    alternative = {"contact": "strict", "replay": {"squeeze": {"angle": 0.0}},
+                   "labels": {"settle": {"require": "both"}}, "sensing": {"robustness": False},
+                   "audit": {"enabled": False}}  # fmt: skip
+    kwargs = _synthetic_results(tmp_path, snakemake_graphs)
+    kwargs["config"] = load_config(REPO / "config", SCHEMA, alternative, check_files=False)
+    contact = kwargs["config"]["replay"]["contact"]
+    speeds = read_json(kwargs["speeds_summary"])
+    write_json(kwargs["speeds_summary"], {**speeds, "contact_model": contact["name"],
+                                          "contact": contact})  # fmt: skip
+    write_report(out_html=tmp_path / "report.html", **kwargs)
+    html = (tmp_path / "report.html").read_text()
+    assert "<td>contact model</td><td>strict</td>" in html
+    assert "<td>friction cone</td><td>elliptic</td>" in html
+    assert "<td>0 (3.2 holds the grasp&#x27;s own angles)</td>" in html
+    assert 'id="contact-model"' in html and 'id="unstable-speeds"' in html
+    assert "no sensor-robustness study" in html and 'id="sensing-curves"' not in html
+    assert "no input audit" in html
+
+
 # ------------------------------------------------------------------ headless browser
 
 

@@ -13,6 +13,8 @@ rule export_monitor:
         metrics=f"results/train/baseline/{{model}}/seed{config['train']['seeds'][0]}/metrics.json",
     output:
         **{k: f"results/monitor/export/baseline_{{model}}/{v}" for k, v in EXPORT_FILES.items()},
+    params:
+        onnx_exporter=config["monitor"]["onnx_exporter"],
     conda:
         CONDA_ENV
     threads: 1
@@ -36,6 +38,8 @@ rule export_pick:
            for m in MODELS for ms in sweep_ms()},
     output:
         **{k: f"results/monitor/export/pick/{v}" for k, v in EXPORT_FILES.items()},
+    params:
+        onnx_exporter=config["monitor"]["onnx_exporter"],
     conda:
         CONDA_ENV
     threads: 1

@@ -16,7 +16,7 @@ def compute() -> None:
     else:
         checkpoint, metrics = sm.input.checkpoint, sm.input.metrics
     export_run(checkpoint, metrics, sm.output.onnx, sm.output.torchscript, sm.output.constants,
-               log_file=sm.log[0])  # fmt: skip
+               log_file=sm.log[0], onnx_exporter=sm.params.onnx_exporter)  # fmt: skip
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).

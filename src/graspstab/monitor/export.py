@@ -9,11 +9,14 @@ window steps, family, spec) are embedded (TorchScript extra file ``graspstab_mon
 The loaders return :mod:`~graspstab.monitor.scoring` scorers, which take their probability from
 the logit with the learning stage's float64 sigmoid, like the eager monitor.
 
-ONNX uses the torch.export-based exporter (``dynamo=True``, needs onnxscript) at opset
-:data:`ONNX_OPSET`; all three families (CNN, GRU, LSTM; uni- or bidirectional, mean or last
-pooling) export and match eager PyTorch (tests). The learning models' own ``forward`` is
-exported: it keeps the batch symbolic (no Python int of a dynamic size), so a trace or export works
-at any batch size.
+ONNX comes from one of torch's two exporters at opset :data:`ONNX_OPSET` (``monitor.
+onnx_exporter``): ``torchscript``, the trace-based one (``dynamo=False``; nn.GRU and nn.LSTM
+become ONNX's own GRU and LSTM operators), or ``dynamo``, the torch.export-based one (needs
+onnxscript). Both export all three families (CNN, GRU, LSTM; uni- or bidirectional, mean or last
+pooling) and match eager PyTorch (tests); the trace-based one is the default because torch.export
+spends about two minutes on a quick-profile GRU (400 frames) where the trace takes two seconds
+(docs/extensions.md). The learning models' own ``forward`` is exported: it keeps the batch
+symbolic (no Python int of a dynamic size), so a trace or export works at any batch size.
 
 TorchScript (``torch.jit.trace``, then ``torch.jit.freeze``) is deprecated upstream from torch
 2.13 on, though it still works there; it is kept because it runs in-process without ONNX Runtime.
@@ -47,6 +50,7 @@ from graspstab.monitor.constants import (
 from graspstab.monitor.scoring import check_windows
 
 ONNX_OPSET = 18  # the torch.export-based exporter's lowest; onnxruntime 1.32 runs up to 23
+ONNX_EXPORTERS = ("torchscript", "dynamo")  # torch.onnx.export(dynamo=False | True)
 INPUT = "forces"
 OUTPUTS = ("prob", "logit")
 META_KEY = "graspstab_monitor"  # ONNX metadata_props key and TorchScript extra file stem
@@ -146,31 +150,40 @@ def export_onnx(
     sidecar: str | Path | None = None,
     *,
     opset: int = ONNX_OPSET,
+    exporter: str = "torchscript",
 ) -> None:
-    """Export ``model`` (with its normalisation) to one self-contained ONNX file at ``path``,
-    dynamic batch axis, constants in its ``metadata_props``; the sidecar too when given."""
+    """Export ``model`` (with its normalisation) to one self-contained ONNX file at ``path`` with
+    ``exporter`` (one of :data:`ONNX_EXPORTERS`), dynamic batch axis, constants in its
+    ``metadata_props``; the sidecar too when given."""
     import onnx
 
+    if exporter not in ONNX_EXPORTERS:
+        raise ExportError(f"unknown ONNX exporter {exporter!r}: monitor.onnx_exporter is one of "
+                          f"{', '.join(ONNX_EXPORTERS)}")  # fmt: skip
     wrapped = RawWindowModel(model, constants).eval()
     family = constants.family or type(model).__name__
-    batch = torch.export.Dim("batch", min=1)
+    if exporter == "dynamo":
+        axes = {"dynamic_shapes": {"forces": {0: torch.export.Dim("batch", min=1)}},
+                "external_data": False}  # fmt: skip
+    else:
+        axes = {"dynamic_axes": {INPUT: {0: "batch"}}}
     with tempfile.TemporaryDirectory() as tmpdir:
         raw = Path(tmpdir) / "model.onnx"
         try:
-            with warnings.catch_warnings(), _quiet(_REGISTRATION_LOG):
+            with warnings.catch_warnings(), _quiet(_REGISTRATION_LOG), torch.no_grad():
                 warnings.simplefilter("ignore")
                 torch.onnx.export(
-                    wrapped, (_example(constants),), raw, dynamo=True, opset_version=opset,
-                    input_names=[INPUT], output_names=list(OUTPUTS), external_data=False,
-                    dynamic_shapes={"forces": {0: batch}}, verbose=False,
+                    wrapped, (_example(constants),), raw, dynamo=exporter == "dynamo",
+                    opset_version=opset, input_names=[INPUT], output_names=list(OUTPUTS),
+                    verbose=False, **axes,
                 )  # fmt: skip
         except Exception as exc:  # noqa: BLE001 - any exporter failure, one clear message
             raise ExportError(
-                f"the {family} model could not be exported to ONNX (opset {opset}, torch "
-                f"{torch.__version__}): {type(exc).__name__}: {exc}"
+                f"the {family} model could not be exported to ONNX ({exporter} exporter, opset "
+                f"{opset}, torch {torch.__version__}): {type(exc).__name__}: {exc}"
             ) from exc
         proto = onnx.load(str(raw))
-    extra = _extra("onnx", opset=opset)
+    extra = _extra("onnx", opset=opset, exporter=exporter)
     record = json.dumps({**extra, **constants.to_dict()}, sort_keys=True)
     onnx.helper.set_model_props(proto, {META_KEY: record})
     onnx.checker.check_model(proto)

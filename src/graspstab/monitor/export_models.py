@@ -38,14 +38,16 @@ def export_run(
     out_torchscript: str | Path,
     out_constants: str | Path,
     log_file: str | Path | None = None,
+    onnx_exporter: str = "torchscript",
 ) -> dict[str, Any]:
-    """Export one trained run to both formats and the sidecar; refuse a file that does not
-    reproduce eager PyTorch within PARITY_ATOL on random raw windows."""
+    """Export one trained run to both formats and the sidecar (ONNX with ``onnx_exporter``);
+    refuse a file that does not reproduce eager PyTorch within PARITY_ATOL on random raw
+    windows."""
     setup_logging(log_file)
     torch.set_num_threads(1)
     model, constants = read_trained(checkpoint, metrics)
     export_torchscript(model, constants, out_torchscript)
-    export_onnx(model, constants, out_onnx, sidecar=out_constants)
+    export_onnx(model, constants, out_onnx, sidecar=out_constants, exporter=onnx_exporter)
     rng = np.random.default_rng(0)
     noise = rng.normal(size=(PARITY_WINDOWS, constants.window_steps, *FRAME_SHAPE))
     windows = (constants.mean + constants.std * noise).astype(np.float32)
