@@ -287,23 +287,38 @@ def test_alternative_protocol_options_run_through_labelling(run, tmp_path):
 
 
 @pytest.mark.workflow
-def test_reference_energy_runs_through_labelling(run, tmp_path):
-    """Eq. 16's energy (the quick profile uses ours) through annealing, replay and labelling, in a
-    copy of the toy run: it reruns from annealing on. (Not through the whole DAG: at toy scale,
-    with the strict model and no squeeze too, its deep grasps leave no training window.)"""
+def test_reference_energy_runs_through_replay(run, tmp_path):
+    """Eq. 16's energy (the quick profile uses ours) through annealing and replay of one object,
+    in a copy of the toy run: it reruns from annealing on, and a dry run shows the rest of the
+    way (the other objects' annealing, labelling; the labelling stage reads replays, whatever
+    energy chose their grasps). Not through the whole DAG: at toy scale, with the strict model
+    and no squeeze too, its deep grasps leave no training window."""
     from graspstab.common.io import read_parquet_metadata
 
     workdir, env, config = run
     ref = _copy_run(workdir, tmp_path / "ref_energy")
-    proc = _snakemake(ref, "results/datasets/speeds.json", *config, "energy=reference", env=env)
+    replays = sorted(str(p.relative_to(ref))
+                     for p in (ref / "results" / "replay" / OBJECT).glob("*_*.*"))  # fmt: skip
+    proc = _snakemake(ref, *replays, *config, "energy=reference", env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
-    rules = {j["rule"] for j in listed_jobs(proc.stdout + proc.stderr)}
-    assert {"anneal_grasps", "replay_grasps", "label_windows"} <= rules
-    assert not rules & {"fetch_ycb_object", "build_hand", "preprocess_object"}
+    jobs = listed_jobs(proc.stdout + proc.stderr)
+    assert {j["rule"] for j in jobs} == {"anneal_grasps", "replay_grasps"}
+    assert {j["wildcards"]["object"] for j in jobs} == {OBJECT}
     grasps = read_parquet_metadata(ref / "results" / "grasps" / OBJECT / "shard_0.parquet")
     assert grasps["provenance"]["params"]["energy"]["name"] == "reference"
     assert grasps["provenance"]["params"]["energy"]["weights"]["hpen"] == 0.0
-    assert (ref / "results" / "datasets" / "baseline" / "index.parquet").is_file()
+    for path in replays:  # new grasps, new replays
+        assert (ref / path).read_bytes() != (workdir / path).read_bytes(), path
+    rest = _snakemake(ref, "results/datasets/speeds.json", "--dry-run", *config,
+                      "energy=reference", env=env)  # fmt: skip
+    assert rest.returncode == 0, rest.stdout[-3000:] + rest.stderr[-3000:]
+    later = listed_jobs(rest.stdout)
+    assert {"anneal_grasps", "replay_grasps", "label_windows"} <= {j["rule"] for j in later}
+    again = {j["wildcards"]["object"] for j in later if j["rule"] in {"anneal_grasps",
+                                                                        "replay_grasps"}}
+    assert again and OBJECT not in again  # the other objects only: this one is done
+    assert not {j["rule"] for j in later} & {"fetch_ycb_object", "build_hand",
+                                              "preprocess_object"}  # fmt: skip
 
 
 @pytest.mark.workflow
