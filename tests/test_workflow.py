@@ -238,6 +238,12 @@ ALT_REPLAY = "replay={steps: 8000, chunk_steps: 1000, squeeze: {angle: 0.0}}"
 ALTERNATIVES = ["contact=strict", "labels={settle: {require: both}}"]
 
 
+def _object_replays(workdir: Path) -> list[str]:
+    """OBJECT's replay outputs (tables and traces) in ``workdir``, as Snakemake targets."""
+    return sorted(str(p.relative_to(workdir))
+                  for p in (workdir / "results" / "replay" / OBJECT).glob("*_*.*"))  # fmt: skip
+
+
 @pytest.mark.workflow
 def test_alternative_protocol_options_run_through_labelling(run, tmp_path):
     """The strict model, no squeeze and the `both` reading run for real through replay and
@@ -297,8 +303,7 @@ def test_reference_energy_runs_through_replay(run, tmp_path):
 
     workdir, env, config = run
     ref = _copy_run(workdir, tmp_path / "ref_energy")
-    replays = sorted(str(p.relative_to(ref))
-                     for p in (ref / "results" / "replay" / OBJECT).glob("*_*.*"))  # fmt: skip
+    replays = _object_replays(ref)
     proc = _snakemake(ref, *replays, *config, "energy=reference", env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
     jobs = listed_jobs(proc.stdout + proc.stderr)
@@ -668,8 +673,7 @@ def test_reverted_change_is_found_by_content(run, tmp_path):
     # the changed run only as far as one object's replays: enough to change its grasps and
     # replays (labelling and the learning jobs then rerun on the reverted run's inputs, by mtime),
     # at a fraction of a whole run's cost
-    replays = sorted(str(p.relative_to(workdir))
-                     for p in (workdir / "results" / "replay" / OBJECT).glob("*_*.*"))  # fmt: skip
+    replays = _object_replays(workdir)
     assert len(replays) == 4, replays  # two shards: a table and traces each
     proc = _snakemake(workdir, *replays, *changed, env=env)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]

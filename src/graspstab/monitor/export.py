@@ -14,7 +14,7 @@ onnx_exporter``): ``torchscript``, the trace-based one (``dynamo=False``; nn.GRU
 become ONNX's own GRU and LSTM operators), or ``dynamo``, the torch.export-based one (needs
 onnxscript). Both export all three families (CNN, GRU, LSTM; uni- or bidirectional, mean or last
 pooling) and match eager PyTorch (tests); the trace-based one is the default because torch.export
-spends about two minutes on a quick-profile GRU (400 frames) where the trace takes two seconds
+spends about two minutes on the baseline GRU (400 frames) where the trace takes two seconds
 (docs/extensions.md). The learning models' own ``forward`` is exported: it keeps the batch
 symbolic (no Python int of a dynamic size), so a trace or export works at any batch size.
 
@@ -163,7 +163,7 @@ def export_onnx(
     wrapped = RawWindowModel(model, constants).eval()
     family = constants.family or type(model).__name__
     if exporter == "dynamo":
-        axes = {"dynamic_shapes": {"forces": {0: torch.export.Dim("batch", min=1)}},
+        axes = {"dynamic_shapes": {INPUT: {0: torch.export.Dim("batch", min=1)}},
                 "external_data": False}  # fmt: skip
     else:
         axes = {"dynamic_axes": {INPUT: {0: "batch"}}}
