@@ -243,6 +243,14 @@ def test_load_config_with_shared_assets(ycb_dir: Path):
         ({"monitor": {"stride": "0"}}, ["monitor.stride"]),
         ({"replay": {"ramp": {"path": "stop"}}}, ["replay.ramp.path"]),
         ({"replay": {"ramp": {"hold_fraction": "1.5"}}}, ["replay.ramp.hold_fraction"]),
+        ({"replay": {"stop_after_loss_s": "0.05"}},
+         ["replay.stop_after_loss_s = 0.05", "labels.contact_loss_s = 0.1"]),
+        ({"replay": {"deep_stop": {"depth": "-0.005"}}},
+         ["replay.deep_stop.depth = -0.005", "penetration_reject = -0.008"]),
+        ({"labels": {"settle": {"search_s": "4.0", "penetration_reject_s": "2.0"}}},
+         ["replay.deep_stop.seconds = 1.0", "replay.deep_stop.after_s = 3.0", "search_s = 4.0",
+          "enabled: false"]),
+        ({"replay": {"deep_stop": {"depth": "0.001"}}}, ["replay.deep_stop.depth"]),
     ],
 )  # fmt: skip
 def test_bad_values_fail_at_load_time_naming_the_field(override, named):
@@ -255,6 +263,10 @@ def test_bad_values_fail_at_load_time_naming_the_field(override, named):
 def test_relation_checks_accept_the_profiles():
     for profile in ("quick", "study", "thesis"):
         load_config(CONFIG_DIR, SCHEMA, {"profile": profile}, check_files=False)
+    # a labelling rule the depth stop would cut passes once the stop is off (full replays)
+    load_config(CONFIG_DIR, SCHEMA, {"labels": {"settle": {"search_s": "4.0"}},
+                                     "replay": {"deep_stop": {"enabled": "false"}}},
+                check_files=False)  # fmt: skip
 
 
 def test_duplicate_object_id_names_the_file_and_the_fix(tmp_path):

@@ -50,6 +50,7 @@ def check_relations(cfg: dict[str, Any]) -> None:
         _fail(f"labels.label_low = {labels['label_low']} must be below labels.label_high = "
               f"{labels['label_high']} (3.3.4: r <= low is stable, r >= high unstable, between "
               "is ambiguous and dropped); swap them or narrow the band.")  # fmt: skip
+    _check_early_stops(cfg["replay"], labels)
     lo, hi = cfg["synthesis"]["pregrasp"]["standoff"]
     if lo > hi:
         _fail(f"synthesis.pregrasp.standoff = [{lo}, {hi}] is reversed: give [min, max] in metres.")
@@ -103,3 +104,33 @@ def check_relations(cfg: dict[str, Any]) -> None:
         _fail(f"monitor.window_s = {cfg['monitor']['window_s']} s is not among "
               f"creep_free.sweep_windows_s ({list(cfg['creep_free']['sweep_windows_s'])}): the "
               "monitor also runs on the creep-free benchmark's sweep models: add it there.")
+
+
+def _check_early_stops(replay: dict[str, Any], labels: dict[str, Any]) -> None:
+    """The replay's early stops must never cut a trace the labelling stage would still use: the
+    contact-loss stop waits at least as long as the contact-end rule, and the depth stop is at
+    least as strict as the depth rule and starts no earlier than the settle search ends."""
+    if replay["stop_after_loss_s"] < labels["contact_loss_s"]:
+        _fail(f"replay.stop_after_loss_s = {replay['stop_after_loss_s']} s is shorter than "
+              f"labels.contact_loss_s = {labels['contact_loss_s']} s: a replay would stop before "
+              "the labelling stage can see that contact ended, so raise stop_after_loss_s.")
+    deep, settle = replay["deep_stop"], labels["settle"]
+    if not deep["enabled"]:
+        return
+    looser = [
+        f"{mine} = {deep[key]} against labels.settle.{theirs} = {settle[theirs]}"
+        for key, mine, theirs, ok in (
+            ("depth", "replay.deep_stop.depth", "penetration_reject",
+             deep["depth"] <= settle["penetration_reject"]),
+            ("seconds", "replay.deep_stop.seconds", "penetration_reject_s",
+             deep["seconds"] >= settle["penetration_reject_s"]),
+            ("after_s", "replay.deep_stop.after_s", "search_s",
+             deep["after_s"] >= settle["search_s"]),
+        )
+        if not ok
+    ]  # fmt: skip
+    if looser:
+        _fail(f"the replay's depth stop would cut replays the depth rule (3.3.1) keeps: "
+              f"{'; '.join(looser)}. It must be at least as deep, as long and as late; set the "
+              "replay.deep_stop values to the labels.settle ones, or replay.deep_stop.enabled: "
+              "false to replay in full.")  # fmt: skip

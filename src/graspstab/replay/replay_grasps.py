@@ -27,7 +27,7 @@ from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
 from graspstab.common.runs import earliest_run
 from graspstab.replay.ramp import RampLoad, ramp_direction, ramp_load
-from graspstab.replay.run import ReplayResult, run_replay
+from graspstab.replay.run import DeepStop, ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 from graspstab.replay.traces import trace_key
 
@@ -89,6 +89,15 @@ def ramp_summary(load: RampLoad, traces: dict[str, np.ndarray], dt: float) -> di
     }  # fmt: skip
 
 
+def deep_stop(params: dict[str, Any]) -> DeepStop | None:
+    """The ``too_deep`` stop rule of ``params["deep_stop"]`` in steps (None when disabled)."""
+    rule, dt = params["deep_stop"], float(params["timestep"])
+    if not rule["enabled"]:
+        return None
+    return DeepStop(float(rule["depth"]), max(1, round(float(rule["seconds"]) / dt)),
+                    round(float(rule["after_s"]) / dt))  # fmt: skip
+
+
 def replay_grasps(
     object_id: str,
     object_dir: str | Path,
@@ -109,6 +118,7 @@ def replay_grasps(
     steps, chunk = int(params["steps"]), int(params["chunk_steps"])
     stop_loss = max(1, round(float(params["stop_after_loss_s"]) / dt))
     loss_steps = max(1, round(float(params["contact_loss_s"]) / dt))
+    too_deep = deep_stop(params)
     gravity = np.asarray(params["gravity"], dtype=np.float64)
     arrays: dict[str, np.ndarray] = {}
     rows = []
@@ -121,7 +131,7 @@ def replay_grasps(
         load = grasp_load(params, scene, scene.model.opt.gravity.copy(), object_id,
                           int(g["grasp_id"]))  # fmt: skip
         result = run_replay(scene.model, data, scene.layout, steps, chunk, stop_loss, load,
-                            scene.object_body)  # fmt: skip
+                            scene.object_body, too_deep)  # fmt: skip
         traces = to_object_frame(result.traces, pos, quat)
         for channel, values in traces.items():
             arrays[trace_key(g["grasp_id"], channel)] = values

@@ -6,8 +6,10 @@ warm start is carried across chunks, so chunking changes nothing but where a rep
 
 Stop rules: ``contact_lost`` once no hand-object contact has existed for ``stop_after_loss_s``
 (longer than the labelling stage's 0.1 s contact-end rule, 3.3.1, so no label can change);
-``diverged`` on a non-finite state or a MuJoCo warning (such replays are flagged and excluded);
-``completed`` after all steps.
+``too_deep`` once the hand has been deeper than the depth rule's bound for its whole duration,
+entirely after the settle search (so 3.3.1's depth rule rejects the grasp whatever its settle
+index: :class:`DeepStop`); ``diverged`` on a non-finite state or a MuJoCo warning (such replays
+are flagged and excluded); ``completed`` after all steps.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import mujoco
 import mujoco.rollout
 import numpy as np
 
+from graspstab.common.runs import earliest_run
 from graspstab.replay.ramp import CONTROL_SPEC, RampLoad, control_rows
 from graspstab.replay.sensors import SensorLayout, force_features, motion_features
 from graspstab.replay.traces import CHANNELS, LOAD
@@ -27,13 +30,37 @@ from graspstab.replay.traces import CHANNELS, LOAD
 FORCE_BATCH_ROWS = 2000
 
 
+@dataclass(frozen=True)
+class DeepStop:
+    """The ``too_deep`` stop rule, in steps: d_t below ``depth`` [m] on ``run`` consecutive rows,
+    all at or after row ``after``. With 3.3.1's bound and duration and ``after`` at the end of its
+    settle search, every such replay is one the labelling stage rejects (the settle index never
+    lies later), so stopping it changes no window."""
+
+    depth: float
+    run: int
+    after: int
+
+    def step(self, carry: int, first_row: int, dist: np.ndarray) -> tuple[bool, int]:
+        """Whether a qualifying run has completed within these rows (``first_row`` onwards, the
+        run reaching their start being ``carry`` rows long), and the run that reaches their end."""
+        with np.errstate(invalid="ignore"):  # NaN (no contact) is never deep, as in 3.3.1
+            deep = (np.asarray(dist) < self.depth) & (
+                first_row + np.arange(len(dist)) >= self.after
+            )
+        seq = np.concatenate([np.ones(carry, dtype=bool), deep])
+        hit = earliest_run(seq, self.run, len(seq)) is not None
+        tail = len(seq) if seq.all() else len(seq) - 1 - int(np.flatnonzero(~seq)[-1])
+        return hit, min(tail, self.run)
+
+
 @dataclass
 class ReplayResult:
     """Trace rows (float32) and how the replay ended."""
 
     traces: dict[str, np.ndarray]  # CHANNELS, (T, ...) each
     steps: int  # steps simulated
-    stop_reason: str  # completed | contact_lost | diverged
+    stop_reason: str  # completed | contact_lost | too_deep | diverged
     overflow: int  # most fingertip contacts that did not fit the sensor slots
     warnings: dict[str, int] = field(default_factory=dict)
 
@@ -55,6 +82,7 @@ def run_replay(
     stop_after_loss_steps: int,
     load: RampLoad | None = None,
     load_body: int = -1,
+    deep_stop: DeepStop | None = None,
 ) -> ReplayResult:
     """Roll out ``steps`` steps from ``data``'s current state with its current controls.
 
@@ -63,7 +91,8 @@ def run_replay(
     integration (MuJoCo evaluates sensors inside ``mj_step``). ``load`` is the load-ramp
     protocol's external force on body ``load_body`` (:mod:`graspstab.replay.ramp`; it sets the
     chunk lengths while it needs the object's speed), recorded as trace channel ``load``
-    (simulation frame, the force during step t).
+    (simulation frame, the force during step t). ``deep_stop`` (None: never) stops a replay
+    the depth rule will reject.
     """
     if chunk < 1 or steps < 1:
         raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
@@ -74,7 +103,7 @@ def run_replay(
         raise ValueError(f"a load needs the body it acts on, got body {load_body}")
     channels = CHANNELS if load is None else (*CHANNELS, LOAD)
     parts: dict[str, list[np.ndarray]] = {c: [] for c in channels}
-    done, reason, overflow, lost_run = 0, "completed", 0, 0
+    done, reason, overflow, lost_run, deep_run = 0, "completed", 0, 0, 0
     pending: list[np.ndarray] = []  # raw rows whose force channels are not computed yet
     pending_rows = 0
 
@@ -130,6 +159,11 @@ def run_replay(
         if lost_run >= stop_after_loss_steps and done < steps:
             reason = "contact_lost"
             break
+        if deep_stop is not None:
+            hit, deep_run = deep_stop.step(deep_run, done - ok, rows["min_distance"][:ok])
+            if hit and done < steps:
+                reason = "too_deep"
+                break
     overflow = max(overflow, flush())
     traces = {
         c: np.concatenate(v) if v else np.zeros((0,), np.float32) for c, v in parts.items()

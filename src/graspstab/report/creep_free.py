@@ -63,11 +63,12 @@ def class_mix(b: Benchmark) -> dict[str, dict[str, Any]]:
 
 
 def replay_outcomes(b: Benchmark) -> dict[str, Any]:
-    """How the replays ended: held to the end, contact lost, and (under the ramp) slid under
-    load with the median time from the slip to the end of contact."""
+    """How the replays ended: held to the end, contact lost, too deep, and (under the ramp) slid
+    under load with the median time from the slip to the end of contact."""
     t = pl.concat([read_parquet(p) for p in b.replays], how="diagonal_relaxed")
     out = {"grasps": t.height, "held": int(t["held_at_end"].sum()),
            "lost": int((t["stop_reason"] == "contact_lost").sum()),
+           "too_deep": int((t["stop_reason"] == "too_deep").sum()),
            "diverged": int(t["diverged"].sum())}  # fmt: skip
     if "ramp_slip_s" in t.columns:
         slid = t.filter(pl.col("ramp_slip_s").is_not_nan())
@@ -159,6 +160,7 @@ def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[st
         ["replays", *[o["grasps"] for o in outcomes]],
         ["held to the end", *[o["held"] for o in outcomes]],
         ["contact lost", *[o["lost"] for o in outcomes]],
+        ["too deep (the depth rule rejects them)", *[o["too_deep"] for o in outcomes]],
         ["slid under the load while in contact", "—", outcomes[1].get("slid", UNDEFINED)],
         ["median slip to contact loss [s]", "—",
          f"{outcomes[1]['slip_to_loss_s']:.2f}" if finite(outcomes[1].get("slip_to_loss_s"))
