@@ -1,9 +1,9 @@
 """Per-object replay outcomes of a workflow run (3.2), from results/replay/<id>/.
 
-Prints per object: replays, held to the end, contact lost (stopped early), diverged, replays whose
-d_t stays below -8 mm for at least 1 s (the labelling stage's rejection rule, 3.3.1, applied here
-to the whole replay), the median speed of the held objects over their last second (creep), and
-the simulated and wall time.
+Prints per object: replays, held to the end, contact lost and too deep (both stopped early),
+diverged, replays whose d_t stays below -8 mm for at least 1 s (the labelling stage's rejection
+rule, 3.3.1, applied here to the whole replay), the median speed of the held objects over their
+last second (creep), and the simulated and wall time.
 
     python benchmarks/replay_summary.py <workdir>
 """
@@ -33,10 +33,10 @@ def main() -> None:
     args = ap.parse_args()
     dt = args.timestep
     print(
-        f"{'object':22s} replays  held  lost  diverged  deep>=1s  creep q50 [mm/s]  "
+        f"{'object':22s} replays  held  lost  too deep  diverged  deep>=1s  creep q50 [mm/s]  "
         "simulated [s]  wall [s]"
     )
-    totals = np.zeros(5, dtype=int)
+    totals = np.zeros(6, dtype=int)
     for obj_dir in sorted((args.workdir / "results" / "replay").iterdir()):
         tables = sorted(obj_dir.glob("replays_*.parquet"))
         if not tables:
@@ -57,6 +57,7 @@ def main() -> None:
             table.height,
             int(table["held_at_end"].sum()),
             int((table["stop_reason"] == "contact_lost").sum()),
+            int((table["stop_reason"] == "too_deep").sum()),
             int(table["diverged"].sum()),
             deep,
         ]
@@ -64,11 +65,11 @@ def main() -> None:
         med = f"{np.median(creep) * 1000:.3f}" if creep else "n/a"
         print(
             f"{obj_dir.name:22s} {counts[0]:7d} {counts[1]:5d} {counts[2]:5d} {counts[3]:9d} "
-            f"{counts[4]:9d}  {med:>16s}  {table['duration_s'].sum():13.0f}  "
+            f"{counts[4]:9d} {counts[5]:9d}  {med:>16s}  {table['duration_s'].sum():13.0f}  "
             f"{table['wall_s'].sum():8.0f}"
         )
     t = totals
-    print(f"{'total':22s} {t[0]:7d} {t[1]:5d} {t[2]:5d} {t[3]:9d} {t[4]:9d}")
+    print(f"{'total':22s} {t[0]:7d} {t[1]:5d} {t[2]:5d} {t[3]:9d} {t[4]:9d} {t[5]:9d}")
 
 
 if __name__ == "__main__":

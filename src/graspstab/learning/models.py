@@ -134,7 +134,14 @@ class RecurrentClassifier(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Map ``(B, W, 5, C)`` windows to ``(B,)`` instability logits."""
         _check_input(x, self.in_features)
-        out, _ = self.rnn(x.flatten(2))  # (B, W, D)
+        seq = x.flatten(2)
+        if seq.device.type == "cpu" and torch.is_autocast_enabled("cpu"):
+            # CPU autocast keeps a GRU in fp32 but sends an LSTM to oneDNN's bfloat16 kernels,
+            # which need AVX-512: run both recurrent cells in fp32 there (the head still casts)
+            with torch.autocast("cpu", enabled=False):
+                out, _ = self.rnn(seq.float())  # (B, W, D)
+        else:
+            out, _ = self.rnn(seq)  # (B, W, D)
         if self.pooling == "mean":
             pooled = out.mean(dim=1)
         elif self.bidirectional:

@@ -3,12 +3,14 @@
 Every family trains through ``fit``: at most ``max_epochs`` epochs, validation after each, the best
 epoch's weights kept (by validation AUPRC unless configured otherwise), early stopping after
 ``patience`` epochs without an improvement larger than ``min_delta``. A seed fixes the weights,
-the batch order and dropout, so the same seed gives the same metrics.
+the batch order and dropout, so the same seed gives the same metrics on the same machine. Training
+runs where ``device`` and ``mixed_precision`` say (:mod:`graspstab.learning.device`); the weights
+it returns are always on the CPU.
 """
 
 from __future__ import annotations
 
-import copy
+import contextlib
 import logging
 import math
 import time
@@ -21,6 +23,7 @@ import torch
 from torch import nn
 
 from graspstab.learning.data import WindowData
+from graspstab.learning.device import Placement, on_device, resolve
 from graspstab.learning.metrics import binary_metrics
 
 log = logging.getLogger("graspstab.learning")
@@ -42,6 +45,8 @@ class TrainSettings:
     selection_metric: str = "auprc"  # 3.5.2: best epoch by validation AUPRC
     class_weighting: bool = False  # weight unstable examples by class frequency (table 4.1)
     eval_batch_size: int = 1024
+    device: str = "auto"  # auto | cpu | cuda (graspstab.learning.device)
+    mixed_precision: str | bool = "auto"  # auto (CUDA only) | true | false
 
     @classmethod
     def from_config(cls, train: Mapping[str, Any], model: Mapping[str, Any]) -> TrainSettings:
@@ -57,6 +62,10 @@ class TrainSettings:
             )
         return cls(**values)
 
+    def placement(self) -> Placement:
+        """The device and precision these settings name on this machine."""
+        return resolve(self.device, self.mixed_precision)
+
 
 @dataclass
 class FitResult:
@@ -68,6 +77,7 @@ class FitResult:
     history: list[dict[str, float]] = field(default_factory=list)
     stopped_early: bool = False
     seconds: float = 0.0
+    placement: dict[str, Any] = field(default_factory=dict)  # Placement.describe()
 
 
 def seed_everything(seed: int) -> np.random.Generator:
@@ -77,16 +87,28 @@ def seed_everything(seed: int) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
+def cpu_state(model: nn.Module) -> dict[str, torch.Tensor]:
+    """A copy of the model's weights on the CPU."""
+    return {k: v.detach().to("cpu", copy=True) for k, v in model.state_dict().items()}
+
+
 def predict_logits(
-    model: nn.Module, data: WindowData, rows: np.ndarray, batch_size: int
+    model: nn.Module,
+    data: WindowData,
+    rows: np.ndarray,
+    batch_size: int,
+    placement: Placement | None = None,
 ) -> np.ndarray:
-    """Logits of ``rows`` in evaluation mode."""
+    """Logits of ``rows`` in evaluation mode, on the model's device (under the placement's
+    autocast when one is given)."""
     model.eval()
+    device = next(model.parameters()).device
+    cast = placement.autocast() if placement is not None else contextlib.nullcontext()
     out = np.empty(len(rows), dtype=np.float64)
-    with torch.inference_mode():
+    with torch.inference_mode(), cast:
         i = 0
         for chunk, x in data.batches(rows, batch_size):
-            out[i : i + len(chunk)] = model(x).double().numpy()
+            out[i : i + len(chunk)] = model(x.to(device)).double().cpu().numpy()
             i += len(chunk)
     return out
 
@@ -96,12 +118,18 @@ def sigmoid(z: np.ndarray) -> np.ndarray:
     return np.exp(-np.logaddexp(0.0, -z))
 
 
-def evaluate(model: nn.Module, data: WindowData, split: str, batch_size: int) -> dict[str, float]:
+def evaluate(
+    model: nn.Module,
+    data: WindowData,
+    split: str,
+    batch_size: int,
+    placement: Placement | None = None,
+) -> dict[str, float]:
     """Loss, AUROC and AUPRC of one split (threshold-free; the threshold comes later)."""
     rows = data.rows(split)
     if len(rows) == 0:  # an assignment whose objects have no usable window: nothing to score
         return {"loss": math.nan, "auroc": math.nan, "auprc": math.nan}
-    logits = predict_logits(model, data, rows, batch_size)
+    logits = predict_logits(model, data, rows, batch_size, placement)
     m = binary_metrics(sigmoid(logits), data.labels(rows), 0.5, logits=logits)
     return {"loss": m["loss"], "auroc": m["auroc"], "auprc": m["auprc"]}
 
@@ -118,24 +146,32 @@ def train_epoch(
     settings: TrainSettings,
     optimiser: torch.optim.Optimizer,
     loss_fn: nn.Module,
-    device: torch.device | str = "cpu",
+    placement: Placement | None = None,
+    scaler: torch.amp.GradScaler | None = None,
 ) -> float:
     """One pass over ``rows`` (already in batch order): the mean training loss. A final batch of
-    one window is dropped (batch norm cannot normalise it)."""
+    one window is dropped (batch norm cannot normalise it). The model must already be on the
+    placement's device (fp32 on the CPU without one)."""
+    placement = placement or resolve("cpu", False)
+    scaler = scaler or placement.scaler()
     model.train()
     total, seen = 0.0, 0
     for i in range(0, len(rows), settings.batch_size):
         batch = rows[i : i + settings.batch_size]
         if len(batch) < 2 and seen:
             continue
-        x = data.train_batch(batch).to(device, non_blocking=True)
-        y = torch.from_numpy(data.labels(batch)).to(device, non_blocking=True)
+        x = data.train_batch(batch).to(placement.device, non_blocking=True)
+        y = torch.from_numpy(data.labels(batch)).to(placement.device, non_blocking=True)
         optimiser.zero_grad(set_to_none=True)
-        loss = loss_fn(model(x), y)
-        loss.backward()
+        with placement.autocast():
+            logits = model(x)
+        loss = loss_fn(logits.float(), y)  # the loss in fp32 under autocast too
+        scaler.scale(loss).backward()
         if settings.grad_clip > 0:
+            scaler.unscale_(optimiser)
             nn.utils.clip_grad_norm_(model.parameters(), settings.grad_clip)
-        optimiser.step()
+        scaler.step(optimiser)
+        scaler.update()
         total += float(loss.detach()) * len(batch)
         seen += len(batch)
     return total / max(seen, 1)
@@ -169,43 +205,48 @@ def fit(
     pos_weight = None
     if settings.class_weighting and y_train.sum() > 0:
         pos_weight = torch.tensor((len(y_train) - y_train.sum()) / y_train.sum())
+    placement = settings.placement()
+    if pos_weight is not None:
+        pos_weight = pos_weight.to(placement.device)
     loss_fn = nn.BCEWithLogitsLoss(pos_weight=pos_weight)
-    optimiser = torch.optim.AdamW(
-        model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay
-    )
     best_score, best_epoch = -math.inf, 0
-    best_state = copy.deepcopy(model.state_dict())
+    best_state = cpu_state(model)
     history: list[dict[str, float]] = []
     since_best, stopped_early = 0, False
     start = time.perf_counter()
-    for epoch in range(1, settings.max_epochs + 1):
-        t0 = time.perf_counter()
-        train_loss = train_epoch(
-            model, data, train_rows[rng.permutation(len(train_rows))], settings, optimiser, loss_fn
+    with on_device(model, placement):
+        optimiser = torch.optim.AdamW(
+            model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay
         )
-        val = evaluate(model, data, "val", settings.eval_batch_size)
-        score = _score(val, metric)
-        row = {"epoch": epoch, "train_loss": train_loss}
-        row.update({f"val_{k}": v for k, v in val.items()})
-        row["seconds"] = time.perf_counter() - t0
-        history.append(row)
-        improved = math.isfinite(score) and score > best_score + settings.min_delta
-        if improved or best_epoch == 0:
-            best_score = score if math.isfinite(score) else -math.inf
-            best_epoch, since_best = epoch, 0
-            best_state = copy.deepcopy(model.state_dict())
-        else:
-            since_best += 1
-        log.info(
-            "epoch %d/%d train_loss %.4f val_loss %.4f val_auprc %.4f val_auroc %.4f (%.1f s)%s",
-            epoch, settings.max_epochs, row["train_loss"], val["loss"], val["auprc"],
-            val["auroc"], row["seconds"], " *" if best_epoch == epoch else "",
-        )  # fmt: skip
-        if on_epoch is not None:
-            on_epoch(epoch, row)
-        if since_best >= settings.patience:
-            stopped_early = True
-            break
+        scaler = placement.scaler()
+        for epoch in range(1, settings.max_epochs + 1):
+            t0 = time.perf_counter()
+            order = train_rows[rng.permutation(len(train_rows))]
+            train_loss = train_epoch(model, data, order, settings, optimiser, loss_fn,
+                                     placement, scaler)  # fmt: skip
+            val = evaluate(model, data, "val", settings.eval_batch_size, placement)
+            score = _score(val, metric)
+            row = {"epoch": epoch, "train_loss": train_loss}
+            row.update({f"val_{k}": v for k, v in val.items()})
+            row["seconds"] = time.perf_counter() - t0
+            history.append(row)
+            improved = math.isfinite(score) and score > best_score + settings.min_delta
+            if improved or best_epoch == 0:
+                best_score = score if math.isfinite(score) else -math.inf
+                best_epoch, since_best = epoch, 0
+                best_state = cpu_state(model)
+            else:
+                since_best += 1
+            log.info(
+                "epoch %d/%d train_loss %.4f val_loss %.4f val_auprc %.4f val_auroc %.4f "
+                "(%.1f s)%s", epoch, settings.max_epochs, row["train_loss"], val["loss"],
+                val["auprc"], val["auroc"], row["seconds"], " *" if best_epoch == epoch else "",
+            )  # fmt: skip
+            if on_epoch is not None:
+                on_epoch(epoch, row)
+            if since_best >= settings.patience:
+                stopped_early = True
+                break
     model.load_state_dict(best_state)
     return FitResult(
         state_dict=best_state,
@@ -214,4 +255,5 @@ def fit(
         history=history,
         stopped_early=stopped_early,
         seconds=time.perf_counter() - start,
+        placement=placement.describe(),
     )

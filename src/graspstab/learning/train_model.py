@@ -154,6 +154,7 @@ def train_model(
         "selection_metric": result.selection_metric,
         "train_seconds": result.seconds,
         "seconds_per_epoch": result.seconds / max(len(result.history), 1),
+        "placement": result.placement,
         "history": result.history,
         **metrics,
         **dict(extra or {}),

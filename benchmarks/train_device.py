@@ -1,15 +1,20 @@
-"""Training cost per family: seconds per epoch and peak memory, to budget the studies (3.5.2).
+"""Training throughput per family, device and precision, to budget the studies (3.5.2).
 
-For every family's baseline configuration (config/model/<family>.yaml) and thread count, a fresh
-subprocess trains on the dataset's training split as ``fit`` does (batches gathered from the
-memory map and normalised, AdamW, gradient clipping) for one warm-up epoch and ``--epochs`` timed
-ones, then times one validation pass. Reported: the median epoch time, the same scaled to 10,000
-training windows and extrapolated to the reference's 43,978 (thesis 4.1.1), the validation pass
-per 10,000 windows, and the subprocess's peak resident memory (``ru_maxrss``). Without the
-dataset, random windows stand in (the cost does not depend on the values).
+For every family's baseline configuration (config/model/<family>.yaml), thread count, device
+(``train.device``: cpu, cuda, or auto) and precision (fp32, or amp: ``train.mixed_precision:
+true``), a fresh subprocess trains on the dataset's training split exactly as ``fit`` does
+(batches gathered from the memory map and normalised, AdamW, gradient clipping, autocast under
+amp) for one warm-up epoch and ``--epochs`` timed ones, then times one validation pass. Reported:
+epochs per second, the median epoch time, the same scaled to 10,000 training windows and to the
+reference's 43,978 (thesis 4.1.1), the validation pass per 10,000 windows, the subprocess's peak
+resident memory (``ru_maxrss``) and, on a GPU, its peak allocated memory; then the thesis
+profile's baseline training (families x seeds x at most max_epochs epochs over the reference's
+training and validation windows) projected per device. Without the dataset, random windows stand
+in (the cost does not depend on the values). A CUDA device that torch cannot see is skipped,
+with a line that says so.
 
-    python benchmarks/train_epoch.py [--dataset results/datasets/baseline] [--windows 2000]
-        [--threads 1 2] [--epochs 2] [--device cuda]
+    python benchmarks/train_device.py [--dataset results/datasets/baseline] [--windows 2000]
+        [--threads 1 2] [--epochs 2] [--device cpu cuda] [--precision fp32 amp] [--json FILE]
 """
 
 from __future__ import annotations
@@ -77,9 +82,11 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
     from graspstab.learning.train import TrainSettings, train_epoch
 
     torch.set_num_threads(int(job["threads"]))
-    device = torch.device(job["device"])
-    spec, train = job["model"], job["train"]
+    spec = job["model"]
+    train = {**job["train"], "device": job["device"], "mixed_precision": job["amp"]}
     settings = TrainSettings.from_config(train, spec)
+    placement = settings.placement()
+    device = placement.device
     data = load_window_data(job["dataset"])
     rows, val_rows = data.rows("train"), data.rows("val")
     torch.manual_seed(0)
@@ -88,6 +95,7 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
         model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay
     )
     loss_fn = nn.BCEWithLogitsLoss()
+    scaler = placement.scaler()
     rng = np.random.default_rng(0)
     setup_rss = _peak_rss_mib()
 
@@ -100,7 +108,7 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
         sync()
         t0 = time.perf_counter()
         train_epoch(model, data, rows[rng.permutation(len(rows))], settings, optimiser, loss_fn,
-                    device)  # fmt: skip
+                    placement, scaler)  # fmt: skip
         sync()
         return time.perf_counter() - t0
 
@@ -109,7 +117,7 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
         model.eval()
         sync()
         t0 = time.perf_counter()
-        with torch.inference_mode():
+        with torch.inference_mode(), placement.autocast():
             for _, x in data.batches(val_rows, settings.eval_batch_size):
                 model(x.to(device)).cpu()
         sync()
@@ -123,6 +131,9 @@ def worker(job: dict[str, Any]) -> dict[str, Any]:
         "family": spec["family"],
         "threads": int(job["threads"]),
         "device": device.type,
+        "precision": "amp" if placement.mixed_precision else "fp32",
+        "amp_dtype": placement.describe()["amp_dtype"],
+        "epochs_per_s": 1.0 / seconds,
         "parameters": count_parameters(model),
         "window_steps": data.window_steps,
         "train_windows": int(len(rows)),
@@ -165,8 +176,12 @@ def main() -> None:
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--epochs", type=int, default=2, help="timed epochs after one warm-up")
     ap.add_argument("--families", nargs="+", default=["cnn", "gru", "lstm"])
-    ap.add_argument("--device", choices=["cpu", "cuda"], default="cpu")
+    ap.add_argument("--device", nargs="+", choices=["auto", "cpu", "cuda"], default=["cpu"],
+                    help="train.device values to measure (auto: CUDA when torch sees a GPU)")
+    ap.add_argument("--precision", nargs="+", choices=["fp32", "amp"], default=["fp32"],
+                    help="amp: train.mixed_precision: true (bfloat16 autocast on the CPU)")
     ap.add_argument("--config-dir", type=Path, default=REPO / "config")
+    ap.add_argument("--json", type=Path, help="also write the measurements here")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()  # fmt: skip
     if args.worker:
@@ -181,19 +196,25 @@ def main() -> None:
     cfg = load_config(config_dir=args.config_dir,
                       schema_path=REPO / "workflow/schemas/config.schema.yaml",
                       snakemake_config={})  # fmt: skip
+    thesis = load_config(config_dir=args.config_dir,
+                         schema_path=REPO / "workflow/schemas/config.schema.yaml",
+                         snakemake_config={"profile": "thesis"}, check_files=False)  # fmt: skip
     labels, dt = cfg["labels"], float(cfg["replay"]["timestep"])
     steps = (
         args.window_steps
         or step_counts(labels["window_s"], labels["offset_s"], labels["horizon_s"], dt)[0]
     )
-    device = args.device
-    if device == "cuda" and not torch.cuda.is_available():
-        print("CUDA requested but not available: measuring on the CPU")
-        device = "cpu"
-    name = torch.cuda.get_device_name(0) if device == "cuda" else cpu_model()
+    devices = []
+    for device in dict.fromkeys(args.device):
+        if device == "cuda" and not torch.cuda.is_available():
+            print("device cuda: torch sees no GPU here, skipped (run this on a GPU machine)")
+            continue
+        devices.append(device)
+    if not devices:
+        raise SystemExit("no device to measure")
     train = {k: v for k, v in cfg["train"].items() if k != "seeds"}
 
-    with tempfile.TemporaryDirectory(prefix="train_epoch_") as tmp:
+    with tempfile.TemporaryDirectory(prefix="train_device_") as tmp:
         if (args.dataset / "index.parquet").is_file():
             dataset, source = args.dataset, str(args.dataset)
         else:
@@ -201,44 +222,77 @@ def main() -> None:
             dataset = synthetic_dataset(Path(tmp), args.windows, val, steps)
             source = f"synthetic random windows ({args.windows} train, {val} val, W={steps})"
         results = []
-        for family in args.families:
-            for threads in args.threads:
-                job = {"model": cfg["model"][family], "train": train, "dataset": str(dataset),
-                       "threads": threads, "epochs": args.epochs, "device": device}  # fmt: skip
-                proc = subprocess.run(
-                    [sys.executable, __file__, "--worker", json.dumps(job)],
-                    capture_output=True, text=True, cwd=REPO,
-                )  # fmt: skip
-                if proc.returncode:
-                    sys.stderr.write(proc.stderr)
-                    raise SystemExit(f"{family} x {threads} threads failed")
-                results.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        for device in devices:
+            for precision in args.precision:
+                for family in args.families:
+                    for threads in args.threads:
+                        job = {"model": cfg["model"][family], "train": train,
+                               "dataset": str(dataset), "threads": threads,
+                               "epochs": args.epochs, "device": device,
+                               "amp": precision == "amp"}  # fmt: skip
+                        proc = subprocess.run(
+                            [sys.executable, __file__, "--worker", json.dumps(job)],
+                            capture_output=True, text=True, cwd=REPO,
+                        )  # fmt: skip
+                        if proc.returncode:
+                            sys.stderr.write(proc.stderr)
+                            raise SystemExit(f"{family} x {threads} threads on {device} "
+                                             f"({precision}) failed")  # fmt: skip
+                        results.append(json.loads(proc.stdout.strip().splitlines()[-1]))
 
-    print(f"device: {device} ({name}); torch {torch.__version__}")
+    names = {"cpu": cpu_model()}
+    if torch.cuda.is_available():
+        names["cuda"] = torch.cuda.get_device_name(0)
+    print(f"torch {torch.__version__}; " + "; ".join(f"{k}: {v}" for k, v in names.items()))
     print(f"dataset: {source}")
     print(f"median of {args.epochs} epoch(s) after one warm-up; batch {train['batch_size']}")
     head = (
-        f"{'family':6} {'thr':>3} {'params':>8} {'W':>4} {'train':>6} {'s/epoch':>9} "
-        f"{'s/10k':>8} {'s@43,978':>9} {'val s/10k':>9} {'RSS MiB':>8} {'setup':>7}"
+        f"{'family':6} {'device':6} {'prec':>4} {'thr':>3} {'params':>8} {'W':>4} {'train':>6} "
+        f"{'epoch/s':>8} {'s/epoch':>9} {'s/10k':>8} {'s@43,978':>9} {'val s/10k':>9} "
+        f"{'RSS MiB':>8} {'GPU MiB':>8}"
     )
-    if device == "cuda":
-        head += f" {'GPU MiB':>8}"
     print(head)
     print("-" * len(head))
     for r in results:
-        line = (
-            f"{r['family']:6} {r['threads']:>3} {r['parameters']:>8,} {r['window_steps']:>4} "
-            f"{r['train_windows']:>6} {r['epoch_s']:>9.3f} {r['epoch_s_per_10k']:>8.2f} "
+        gpu = f"{r['peak_gpu_mib']:>8.0f}" if "peak_gpu_mib" in r else f"{'-':>8}"
+        print(
+            f"{r['family']:6} {r['device']:6} {r['precision']:>4} {r['threads']:>3} "
+            f"{r['parameters']:>8,} {r['window_steps']:>4} {r['train_windows']:>6} "
+            f"{r['epochs_per_s']:>8.3f} {r['epoch_s']:>9.3f} {r['epoch_s_per_10k']:>8.2f} "
             f"{r['epoch_s_per_10k'] * REFERENCE_TRAIN / PER:>9.1f} "
-            f"{r['val_pass_s_per_10k']:>9.2f} {r['peak_rss_mib']:>8.0f} {r['setup_rss_mib']:>7.0f}"
+            f"{r['val_pass_s_per_10k']:>9.2f} {r['peak_rss_mib']:>8.0f} {gpu}"
         )
-        if device == "cuda":
-            line += f" {r['peak_gpu_mib']:>8.0f}"
-        print(line)
     print("s/10k: epoch time scaled to 10,000 training windows; s@43,978: extrapolated to the "
           "reference's training split; val s/10k: one validation pass per 10,000 windows "
           f"(the reference's validation split has {REFERENCE_VAL:,}); RSS MiB: peak resident "
-          "memory of the measuring process, setup: its peak before the first epoch")  # fmt: skip
+          "memory of the measuring process; GPU MiB: peak allocated on the GPU")  # fmt: skip
+    print()
+    print(thesis_projection(results, thesis["train"]))
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1))
+
+
+def thesis_projection(results: list[dict[str, Any]], train: dict[str, Any]) -> str:
+    """The thesis profile's baseline training per (device, precision, threads): every family's
+    seeds for at most max_epochs epochs, each epoch a training pass over the reference's 43,978
+    windows plus a validation pass over its 12,052, at the measured rates (an upper bound: early
+    stopping ends runs sooner)."""
+    seeds, epochs = len(train["seeds"]), int(train["max_epochs"])
+    lines = [
+        f"thesis baseline training ({seeds} seeds x <= {epochs} epochs per family, "
+        f"{REFERENCE_TRAIN:,} train + {REFERENCE_VAL:,} val windows), one process:"
+    ]
+    groups: dict[tuple[str, str, int], dict[str, float]] = {}
+    for r in results:
+        per_epoch = (r["epoch_s_per_10k"] * REFERENCE_TRAIN + r["val_pass_s_per_10k"]
+                     * REFERENCE_VAL) / PER  # fmt: skip
+        key = (r["device"], r["precision"], r["threads"])
+        groups.setdefault(key, {})[r["family"]] = per_epoch * seeds * epochs
+    for (device, precision, threads), fams in groups.items():
+        parts = ", ".join(f"{f} {s / 3600:.1f} h" for f, s in fams.items())
+        lines.append(f"  {device} {precision} {threads} thread(s): {parts}; "
+                     f"all {sum(fams.values()) / 3600:.1f} h")  # fmt: skip
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
