@@ -12,6 +12,7 @@ import json
 import logging
 import time
 import zlib
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -64,7 +65,7 @@ def _signed_nearest(dist: np.ndarray) -> np.ndarray:
 
 def grasp_table(
     object_id: str,
-    shard: int,
+    shard: int | np.ndarray,
     seed: int,
     grasp_ids: np.ndarray,
     result: Any,
@@ -80,7 +81,7 @@ def grasp_table(
     cols: dict[str, Any] = {
         "grasp_id": grasp_ids.astype(np.int64),
         "object": [object_id] * len(grasp_ids),
-        "shard": np.full(len(grasp_ids), shard, dtype=np.int32),
+        "shard": np.broadcast_to(np.asarray(shard, dtype=np.int32), len(grasp_ids)).copy(),
         "seed": np.full(len(grasp_ids), seed, dtype=np.int64),
     }
     cols.update({c: pose[:, k] for k, c in enumerate(POSE_COLUMNS)})
@@ -109,6 +110,28 @@ def anneal_grasps(
     log_file: str | Path | None = None,
 ) -> pl.DataFrame:
     """Sample ``grasps_per_shard`` pre-grasps, anneal them in batches, write the Parquet table."""
+    return anneal_shards(object_id, object_dir, hand_dir, [out_path], params, seed, [shard],
+                         threads, log_file)[0]  # fmt: skip
+
+
+def anneal_shards(
+    object_id: str,
+    object_dir: str | Path,
+    hand_dir: str | Path,
+    out_paths: Sequence[str | Path],
+    params: dict[str, Any],
+    seed: int,
+    shards: Sequence[int],
+    threads: int | None = None,
+    log_file: str | Path | None = None,
+) -> list[pl.DataFrame]:
+    """Anneal the chains of several shards of one object in shared batches of ``batch_size`` and
+    write each shard's table to its path. A chain depends only on its seed and start (its shard's
+    pre-grasps and chain seeds, :func:`shard_seeds`), so each table is the one a job of that shard
+    alone writes, up to floating-point noise in the energy; one call over small shards costs
+    less than one per shard (the per-iteration overhead is shared)."""
+    if len(out_paths) != len(shards) or not shards:
+        raise ValueError(f"need one output path per shard, got {len(out_paths)} for {shards}")
     setup_logging(log_file)
     if threads:
         torch.set_num_threads(int(threads))
@@ -121,22 +144,30 @@ def anneal_grasps(
         object_dir, hand_dir, params["energy"]["weights"], dtype, ann["penetration_clusters"]
     )
     mesh = trimesh.load(object_dir / "mesh.obj", force="mesh", process=False)
-    seeds = shard_seeds(seed, object_id, shard, n)
-    pre = sample_pregrasps(
-        mesh, energy.kin, n, np.random.Generator(np.random.PCG64(seeds[0])), params["pregrasp"]
-    )
+    starts, chain_seeds = [], []
+    for shard in shards:
+        seeds = shard_seeds(seed, object_id, shard, n)
+        starts.append(sample_pregrasps(mesh, energy.kin, n,
+                                       np.random.Generator(np.random.PCG64(seeds[0])),
+                                       params["pregrasp"]))  # fmt: skip
+        chain_seeds += seeds[1:]
+    pre = {k: np.concatenate([p[k] for p in starts]) for k in ("wrist_pos", "rot6d", "joints")}
+    shard_of = np.repeat(np.asarray(shards, dtype=np.int64), n)
+    grasp_ids = shard_of * n + np.tile(np.arange(n), len(shards))
     schedule = AnnealSchedule.from_params(ann)
+    label = f"shard {shards[0]}" if len(shards) == 1 else f"shards {list(shards)}"
     log.info(
-        "%s shard %d: %d grasps x %d iterations, batches of %d, %d torch threads",
-        object_id, shard, n, schedule.iterations, ann["batch_size"], torch.get_num_threads(),
+        "%s %s: %d grasps x %d iterations, batches of %d, %d torch threads",
+        object_id, label, len(grasp_ids), schedule.iterations, ann["batch_size"],
+        torch.get_num_threads(),
     )  # fmt: skip
     cands = load_npz(hand_dir / "contact_candidates.npz")
     cand_finger = cands["finger"].astype(str)
     cand_distal = cands["region_kind"][cands["region"]].astype(str) == "distal"
     frames = []
     batch = int(ann["batch_size"])
-    for lo in range(0, n, batch):
-        hi = min(lo + batch, n)
+    for lo in range(0, len(grasp_ids), batch):
+        hi = min(lo + batch, len(grasp_ids))
         result = anneal(
             energy,
             pre["wrist_pos"][lo:hi],
@@ -145,9 +176,9 @@ def anneal_grasps(
             energy.kin.joint_lower.numpy(),
             energy.kin.joint_upper.numpy(),
             schedule,
-            seeds[1 + lo : 1 + hi],
+            chain_seeds[lo:hi],
             dtype=dtype,
-            progress=log_progress(f"{object_id} shard {shard} grasps {lo}-{hi - 1}"),
+            progress=log_progress(f"{object_id} {label} grasps {lo}-{hi - 1}"),
         )
         with torch.no_grad():
             state = [torch.as_tensor(a, dtype=dtype) for a in (result.wrist_pos, result.rot6d)]
@@ -158,9 +189,9 @@ def anneal_grasps(
         frames.append(
             grasp_table(
                 object_id,
-                shard,
+                shard_of[lo:hi],
                 seed,
-                shard * n + np.arange(lo, hi),
+                grasp_ids[lo:hi],
                 result,
                 {t: terms[t].to(torch.float64).numpy() for t in TERMS},
                 cand_dist.to(torch.float64).numpy(),
@@ -171,24 +202,30 @@ def anneal_grasps(
         )
     table = pl.concat(frames)
     elapsed = time.perf_counter() - t0
-    meta = {
-        "object_id": object_id,
-        "shard": shard,
-        "seed": seed,
-        "grasps": n,
-        "wall_time_s": elapsed,
-        "grasps_per_s": n / elapsed,
-        "torch_threads": torch.get_num_threads(),
-        "frame": "object frame (centre of mass, +z up); quaternions w, x, y, z",
-        "provenance": provenance("synthesis", params),
-    }
-    write_parquet(out_path, table, metadata=meta)
+    tables = []
+    for shard, out_path in zip(shards, out_paths, strict=True):
+        part = table.filter(pl.col("shard") == shard)
+        meta = {
+            "object_id": object_id,
+            "shard": shard,
+            "seed": seed,
+            "grasps": n,
+            # a shard's share of the job's time (the job annealed len(shards) shards together)
+            "wall_time_s": elapsed / len(shards),
+            "grasps_per_s": len(grasp_ids) / elapsed,
+            "shards_in_job": len(shards),
+            "torch_threads": torch.get_num_threads(),
+            "frame": "object frame (centre of mass, +z up); quaternions w, x, y, z",
+            "provenance": provenance("synthesis", params),
+        }
+        write_parquet(out_path, part, metadata=meta)
+        tables.append(part)
     log.info(
-        "%s shard %d: %d grasps in %.1f s (%.2f grasps/s); median energy %.1f -> %.1f",
-        object_id, shard, n, elapsed, n / elapsed,
+        "%s %s: %d grasps in %.1f s (%.2f grasps/s); median energy %.1f -> %.1f",
+        object_id, label, len(grasp_ids), elapsed, len(grasp_ids) / elapsed,
         float(np.median(table["energy_start"])), float(np.median(table["energy"])),
     )  # fmt: skip
-    return table
+    return tables
 
 
 def main(argv: list[str] | None = None) -> int:
