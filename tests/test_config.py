@@ -69,7 +69,9 @@ def test_profiles_protocol_choices():
     for cfg in (quick, study):
         assert cfg["synthesis"]["energy"]["name"] == "hpen"
         assert cfg["replay"]["squeeze"]["angle"] == 0.25
-        assert cfg["synthesis"]["split_shards"] == {"train": None, "val": 4, "test": None}
+        assert cfg["synthesis"]["split_shards"] == {"train": None, "val": 2, "test": None}
+        # 32 grasps a shard in seed blocks of 16: the grasps of 16-grasp shards
+        assert (cfg["synthesis"]["grasps_per_shard"], cfg["synthesis"]["seed_block"]) == (32, 16)
     assert thesis["replay"]["contact"]["name"] == "reference"
     assert thesis["synthesis"]["energy"]["name"] == "reference"
     assert thesis["replay"]["squeeze"]["angle"] == 0.0

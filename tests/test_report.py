@@ -696,10 +696,10 @@ def test_benchmark_inputs_match_the_dag(snakemake_graphs: dict[str, Path]) -> No
     for combo in wildcards["anneal_grasps"]:
         per_object[combo["object"]] = per_object.get(combo["object"], 0) + 1
     assert {o: n for o, n in per_object.items() if splits[o] == "val"} == {
-        "013_apple": 4,
-        "010_potted_meat_can": 4,
+        "013_apple": 2,
+        "010_potted_meat_can": 2,
     }
-    assert {n for o, n in per_object.items() if splits[o] != "val"} == {2}
+    assert {n for o, n in per_object.items() if splits[o] != "val"} == {1}
 
 
 def test_benchmark_inputs_expand_patterns() -> None:

@@ -20,6 +20,7 @@ from graspstab.synthesis.anneal_grasps import (
     FINGERS,
     POSE_COLUMNS,
     anneal_grasps,
+    seed_blocks,
     shard_seeds,
 )
 from graspstab.synthesis.energy_reference import ReferenceEnergy
@@ -36,6 +37,7 @@ OBJECT = "061_foam_brick"
 def _params(grasps: int, iterations: int, batch: int, dtype: str = "float32") -> dict:
     params = yaml.safe_load(yaml.safe_dump(DEFAULTS))
     params["grasps_per_shard"] = grasps
+    params["seed_block"] = None  # each shard one seed block
     params["annealing"].update(iterations=iterations, batch_size=batch, dtype=dtype)
     return params
 
@@ -138,6 +140,33 @@ def test_shard_is_deterministic_and_independent_of_batching(
         _params(4, 120, 4), seed=6, shard=0,
     )  # fmt: skip
     assert not np.allclose(other.select(cols).to_numpy(), a)
+
+
+def test_seed_blocks_make_a_grasp_independent_of_the_shard_size(
+    foam_brick_dir: Path, built_hand_dir: Path, tmp_path: Path
+) -> None:
+    """One shard of 4 grasps in seed blocks of 2 holds exactly the grasps of two 2-grasp shards
+    (ids, poses, energies: bit for bit), although its chains share one annealing call; without
+    blocks (seed_block null) it holds other grasps."""
+    small = [
+        anneal_grasps(OBJECT, foam_brick_dir, built_hand_dir, tmp_path / f"s{k}.parquet",
+                      _params(2, 120, 4), seed=5, shard=k)
+        for k in (0, 1)
+    ]  # fmt: skip
+    cols = ["grasp_id", *POSE_COLUMNS, "energy", "energy_start"]
+    blocked = {**_params(4, 120, 4), "seed_block": 2}
+    big = anneal_grasps(OBJECT, foam_brick_dir, built_hand_dir, tmp_path / "b.parquet", blocked,
+                        seed=5, shard=0)  # fmt: skip
+    assert big.select(cols).equals(pl.concat(small).select(cols))
+    assert read_parquet_metadata(tmp_path / "b.parquet")["seed_blocks"] == [0, 1]
+    # shard 1 of that layout is blocks 2 and 3
+    assert seed_blocks(blocked, 1) == [2, 3]
+    whole = anneal_grasps(OBJECT, foam_brick_dir, built_hand_dir, tmp_path / "w.parquet",
+                          _params(4, 120, 4), seed=5, shard=0)  # fmt: skip
+    assert not np.allclose(whole.select(POSE_COLUMNS).to_numpy(),
+                           big.select(POSE_COLUMNS).to_numpy())  # fmt: skip
+    with pytest.raises(ValueError, match="not a multiple of synthesis.seed_block = 3"):
+        seed_blocks({**blocked, "seed_block": 3}, 0)
 
 
 def test_seeds_differ_by_object_shard_and_seed() -> None:

@@ -525,8 +525,7 @@ def test_annealing_parameter_reruns_from_annealing_on(run):
     rules = {j["rule"] for j in jobs}
     anneal = {(j["wildcards"]["object"], j["wildcards"]["shard"]) for j in jobs
               if j["rule"] == "anneal_grasps"}  # fmt: skip
-    # two shards each (toy synthesis), four for the validation object (the quick profile's
-    # synthesis.split_shards)
+    # two shards each, four for the validation object (toy synthesis.split_shards)
     shards = {"061_foam_brick": 2, "014_lemon": 4, "077_rubiks_cube": 2}
     assert anneal == {(o, str(k)) for o, n in shards.items() for k in range(n)}
     assert sum(j["rule"] == "replay_grasps" for j in jobs) == 8
@@ -546,7 +545,7 @@ def test_adding_an_object_runs_only_its_jobs_plus_downstream(run):
     assert {j["rule"] for j in per_object} == {
         "fetch_ycb_object", "preprocess_object", "anneal_grasps", "replay_grasps",
         "replay_grasps_creep_free", "summarise_grasps"}  # fmt: skip
-    # a validation object: the quick profile's split_shards gives it four shards
+    # a validation object: the toy's split_shards gives it four shards
     assert sum(j["rule"] == "anneal_grasps" for j in per_object) == 4
     rules = {j["rule"] for j in jobs}
     assert "build_hand" not in rules

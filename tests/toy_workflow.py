@@ -20,9 +20,11 @@ OBJECTS = "only_objects=[061_foam_brick,014_lemon,077_rubiks_cube]"
 SPLITS = "objects={items: {014_lemon: {split: val}}}"
 # Coarse CoACD settings keep the toy run fast; the defaults are exercised in the 12-object run.
 FAST = "preprocess={coacd: {resolution: 500, mcts_iterations: 20, preprocess_resolution: 30}}"
-# Two shards of four grasps, a short schedule, batches of four (so batching is exercised).
+# Two shards of four grasps (four for the validation object), each one seed block, a short
+# schedule, batches of four (so batching is exercised).
 TOY_SYNTHESIS = (
-    "synthesis={shards: 2, grasps_per_shard: 4, annealing: {iterations: 1500, batch_size: 4}}"
+    "synthesis={shards: 2, grasps_per_shard: 4, seed_block: null, split_shards: {val: 4}, "
+    "annealing: {iterations: 1500, batch_size: 4}}"
 )
 # Replays of 1 s in chunks of 0.25 s; the load ramp (creep-free benchmark) on the linear path from
 # 0.3 s, reaching a ceiling of 5 m g at 0.8 s (so its recorded load is F(t) to the letter).

@@ -51,6 +51,11 @@ def check_relations(cfg: dict[str, Any]) -> None:
               f"{labels['label_high']} (3.3.4: r <= low is stable, r >= high unstable, between "
               "is ambiguous and dropped); swap them or narrow the band.")  # fmt: skip
     _check_early_stops(cfg["replay"], labels)
+    syn = cfg["synthesis"]
+    if syn["seed_block"] is not None and syn["grasps_per_shard"] % syn["seed_block"]:
+        _fail(f"synthesis.seed_block = {syn['seed_block']} does not divide "
+              f"synthesis.grasps_per_shard = {syn['grasps_per_shard']}: a shard holds whole seed "
+              "blocks; choose a divisor, or seed_block: null (each shard one block).")  # fmt: skip
     lo, hi = cfg["synthesis"]["pregrasp"]["standoff"]
     if lo > hi:
         _fail(f"synthesis.pregrasp.standoff = [{lo}, {hi}] is reversed: give [min, max] in metres.")

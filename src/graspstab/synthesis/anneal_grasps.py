@@ -1,5 +1,9 @@
 """Synthesis stage entry point: pre-grasps and annealing for one object x shard (3.1.3-3.1.4).
 
+A shard is annealed in seed blocks (``synthesis.seed_block`` grasps each, null: the whole shard):
+a grasp depends on its id and the block size only, so shards can be resized without changing a
+grasp, and fewer, larger shards share the annealer's per-iteration overhead.
+
 Writes one Parquet row per candidate grasp: its best state along the annealing trajectory (wrist
 position, 6-D rotation, MuJoCo quaternion, 16 joint angles, all in the object frame), every energy
 term there, the total at the start, the acceptance rate and contact diagnostics.
@@ -12,7 +16,6 @@ import json
 import logging
 import time
 import zlib
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +56,8 @@ def object_key(object_id: str) -> int:
 
 
 def shard_seeds(seed: int, object_id: str, shard: int, n: int) -> list[np.random.SeedSequence]:
-    """Seeds of a shard: [0] for its pre-grasps, [1 + i] for chain i (SeedSequence spawn keys)."""
+    """Seeds of seed block ``shard`` (the shard itself when synthesis.seed_block is null) of ``n``
+    grasps: [0] for its pre-grasps, [1 + i] for chain i (SeedSequence spawn keys)."""
     return np.random.SeedSequence([seed, object_key(object_id), shard]).spawn(n + 1)
 
 
@@ -65,7 +69,7 @@ def _signed_nearest(dist: np.ndarray) -> np.ndarray:
 
 def grasp_table(
     object_id: str,
-    shard: int | np.ndarray,
+    shard: int,
     seed: int,
     grasp_ids: np.ndarray,
     result: Any,
@@ -81,7 +85,7 @@ def grasp_table(
     cols: dict[str, Any] = {
         "grasp_id": grasp_ids.astype(np.int64),
         "object": [object_id] * len(grasp_ids),
-        "shard": np.broadcast_to(np.asarray(shard, dtype=np.int32), len(grasp_ids)).copy(),
+        "shard": np.full(len(grasp_ids), shard, dtype=np.int32),
         "seed": np.full(len(grasp_ids), seed, dtype=np.int64),
     }
     cols.update({c: pose[:, k] for k, c in enumerate(POSE_COLUMNS)})
@@ -98,6 +102,20 @@ def grasp_table(
     return pl.DataFrame(cols)
 
 
+def seed_blocks(params: dict[str, Any], shard: int) -> list[int]:
+    """The seed blocks of a shard: ``grasps_per_shard / seed_block`` consecutive block numbers
+    (the shard itself when ``seed_block`` is null). Block ``b`` holds grasp ids ``b * size`` to
+    ``(b + 1) * size - 1`` and is seeded by ``(seed, object, b)``, so a grasp depends on its id and
+    the block size only: two shards of 16 and one of 32 in blocks of 16 hold the same grasps."""
+    n, size = int(params["grasps_per_shard"]), params.get("seed_block")
+    size = n if size is None else int(size)
+    if size < 1 or n % size:
+        raise ValueError(f"synthesis.grasps_per_shard = {n} is not a multiple of "
+                         f"synthesis.seed_block = {size}")  # fmt: skip
+    per = n // size
+    return list(range(shard * per, (shard + 1) * per))
+
+
 def anneal_grasps(
     object_id: str,
     object_dir: str | Path,
@@ -109,29 +127,10 @@ def anneal_grasps(
     threads: int | None = None,
     log_file: str | Path | None = None,
 ) -> pl.DataFrame:
-    """Sample ``grasps_per_shard`` pre-grasps, anneal them in batches, write the Parquet table."""
-    return anneal_shards(object_id, object_dir, hand_dir, [out_path], params, seed, [shard],
-                         threads, log_file)[0]  # fmt: skip
-
-
-def anneal_shards(
-    object_id: str,
-    object_dir: str | Path,
-    hand_dir: str | Path,
-    out_paths: Sequence[str | Path],
-    params: dict[str, Any],
-    seed: int,
-    shards: Sequence[int],
-    threads: int | None = None,
-    log_file: str | Path | None = None,
-) -> list[pl.DataFrame]:
-    """Anneal the chains of several shards of one object in shared batches of ``batch_size`` and
-    write each shard's table to its path. A chain depends only on its seed and start (its shard's
-    pre-grasps and chain seeds, :func:`shard_seeds`), so each table is the one a job of that shard
-    alone writes, up to floating-point noise in the energy; one call over small shards costs
-    less than one per shard (the per-iteration overhead is shared)."""
-    if len(out_paths) != len(shards) or not shards:
-        raise ValueError(f"need one output path per shard, got {len(out_paths)} for {shards}")
+    """Sample the shard's pre-grasps block by block (:func:`seed_blocks`), anneal all of its
+    chains in batches of ``batch_size`` and write the Parquet table. A chain depends only on its
+    seed and start (graspstab.synthesis.anneal), so a block's grasps come out the same in any
+    shard that holds it; one call over more chains costs less per grasp."""
     setup_logging(log_file)
     if threads:
         torch.set_num_threads(int(threads))
@@ -140,34 +139,33 @@ def anneal_shards(
     ann = params["annealing"]
     dtype = {"float32": torch.float32, "float64": torch.float64}[ann["dtype"]]
     n = int(params["grasps_per_shard"])
+    blocks = seed_blocks(params, shard)
+    size = n // len(blocks)
     energy = GraspEnergy.load(
         object_dir, hand_dir, params["energy"]["weights"], dtype, ann["penetration_clusters"]
     )
     mesh = trimesh.load(object_dir / "mesh.obj", force="mesh", process=False)
     starts, chain_seeds = [], []
-    for shard in shards:
-        seeds = shard_seeds(seed, object_id, shard, n)
-        starts.append(sample_pregrasps(mesh, energy.kin, n,
+    for block in blocks:
+        seeds = shard_seeds(seed, object_id, block, size)
+        starts.append(sample_pregrasps(mesh, energy.kin, size,
                                        np.random.Generator(np.random.PCG64(seeds[0])),
                                        params["pregrasp"]))  # fmt: skip
         chain_seeds += seeds[1:]
     pre = {k: np.concatenate([p[k] for p in starts]) for k in ("wrist_pos", "rot6d", "joints")}
-    shard_of = np.repeat(np.asarray(shards, dtype=np.int64), n)
-    grasp_ids = shard_of * n + np.tile(np.arange(n), len(shards))
     schedule = AnnealSchedule.from_params(ann)
-    label = f"shard {shards[0]}" if len(shards) == 1 else f"shards {list(shards)}"
     log.info(
-        "%s %s: %d grasps x %d iterations, batches of %d, %d torch threads",
-        object_id, label, len(grasp_ids), schedule.iterations, ann["batch_size"],
-        torch.get_num_threads(),
+        "%s shard %d: %d grasps (%d seed block(s) of %d) x %d iterations, batches of %d, "
+        "%d torch threads", object_id, shard, n, len(blocks), size, schedule.iterations,
+        ann["batch_size"], torch.get_num_threads(),
     )  # fmt: skip
     cands = load_npz(hand_dir / "contact_candidates.npz")
     cand_finger = cands["finger"].astype(str)
     cand_distal = cands["region_kind"][cands["region"]].astype(str) == "distal"
     frames = []
     batch = int(ann["batch_size"])
-    for lo in range(0, len(grasp_ids), batch):
-        hi = min(lo + batch, len(grasp_ids))
+    for lo in range(0, n, batch):
+        hi = min(lo + batch, n)
         result = anneal(
             energy,
             pre["wrist_pos"][lo:hi],
@@ -178,7 +176,7 @@ def anneal_shards(
             schedule,
             chain_seeds[lo:hi],
             dtype=dtype,
-            progress=log_progress(f"{object_id} {label} grasps {lo}-{hi - 1}"),
+            progress=log_progress(f"{object_id} shard {shard} grasps {lo}-{hi - 1}"),
         )
         with torch.no_grad():
             state = [torch.as_tensor(a, dtype=dtype) for a in (result.wrist_pos, result.rot6d)]
@@ -189,9 +187,9 @@ def anneal_shards(
         frames.append(
             grasp_table(
                 object_id,
-                shard_of[lo:hi],
+                shard,
                 seed,
-                grasp_ids[lo:hi],
+                shard * n + np.arange(lo, hi),
                 result,
                 {t: terms[t].to(torch.float64).numpy() for t in TERMS},
                 cand_dist.to(torch.float64).numpy(),
@@ -202,30 +200,25 @@ def anneal_shards(
         )
     table = pl.concat(frames)
     elapsed = time.perf_counter() - t0
-    tables = []
-    for shard, out_path in zip(shards, out_paths, strict=True):
-        part = table.filter(pl.col("shard") == shard)
-        meta = {
-            "object_id": object_id,
-            "shard": shard,
-            "seed": seed,
-            "grasps": n,
-            # a shard's share of the job's time (the job annealed len(shards) shards together)
-            "wall_time_s": elapsed / len(shards),
-            "grasps_per_s": len(grasp_ids) / elapsed,
-            "shards_in_job": len(shards),
-            "torch_threads": torch.get_num_threads(),
-            "frame": "object frame (centre of mass, +z up); quaternions w, x, y, z",
-            "provenance": provenance("synthesis", params),
-        }
-        write_parquet(out_path, part, metadata=meta)
-        tables.append(part)
+    meta = {
+        "object_id": object_id,
+        "shard": shard,
+        "seed": seed,
+        "grasps": n,
+        "seed_blocks": blocks,
+        "wall_time_s": elapsed,
+        "grasps_per_s": n / elapsed,
+        "torch_threads": torch.get_num_threads(),
+        "frame": "object frame (centre of mass, +z up); quaternions w, x, y, z",
+        "provenance": provenance("synthesis", params),
+    }
+    write_parquet(out_path, table, metadata=meta)
     log.info(
-        "%s %s: %d grasps in %.1f s (%.2f grasps/s); median energy %.1f -> %.1f",
-        object_id, label, len(grasp_ids), elapsed, len(grasp_ids) / elapsed,
+        "%s shard %d: %d grasps in %.1f s (%.2f grasps/s); median energy %.1f -> %.1f",
+        object_id, shard, n, elapsed, n / elapsed,
         float(np.median(table["energy_start"])), float(np.median(table["energy"])),
     )  # fmt: skip
-    return tables
+    return table
 
 
 def main(argv: list[str] | None = None) -> int:
