@@ -174,7 +174,7 @@ def test_show_profile_study_sets_what_the_profile_says(default_cfg):
 
     def get(tree: Any, path: str) -> Any:
         for part in path.split("."):
-            tree = tree[part]
+            tree = tree.get(part, "<unset>") if isinstance(tree, dict) else "<unset>"
         return tree
 
     for path, value in leaves(study):

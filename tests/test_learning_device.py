@@ -14,6 +14,7 @@ import yaml
 from conftest import CONFIG_DIR, SCHEMA
 
 from graspstab.config import ConfigError, load_config
+from graspstab.learning import device
 from graspstab.learning.data import load_window_data
 from graspstab.learning.device import resolve
 from graspstab.learning.models import build_model
@@ -65,6 +66,29 @@ def test_auto_takes_cuda_with_autocast_when_a_gpu_is_present(monkeypatch) -> Non
         assert placement.device.type == "cuda" and placement.amp_dtype == dtype
     assert resolve("auto", False).amp_dtype is None
     assert resolve("cpu", "auto") == resolve("cpu", False)  # auto: autocast on CUDA only
+
+
+def test_native_autocasts_only_where_the_hardware_has_half_precision(monkeypatch) -> None:
+    _no_gpu(monkeypatch)
+    for has_bf16, dtype in ((True, torch.bfloat16), (False, None)):
+        monkeypatch.setattr(device, "cpu_has_native_bf16", lambda has_bf16=has_bf16: has_bf16)
+        assert resolve("auto", "native") == resolve("cpu", "native")
+        assert resolve("cpu", "native").amp_dtype == dtype
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "is_bf16_supported", lambda: True)
+    assert resolve("auto", "native").amp_dtype == torch.bfloat16  # CUDA, whatever the CPU has
+
+
+def test_a_model_spec_overrides_the_train_groups_precision() -> None:
+    settings = TrainSettings.from_config({**TRAIN, "mixed_precision": "auto"},
+                                         {**CNN, "mixed_precision": "native"})  # fmt: skip
+    assert settings.mixed_precision == "native"
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"model": {"cnn": {"mixed_precision": "native"}}},
+                      check_files=False)  # fmt: skip
+    assert cfg["model"]["cnn"]["mixed_precision"] == "native"
+    with pytest.raises(ConfigError, match="model.lstm.mixed_precision"):
+        load_config(CONFIG_DIR, SCHEMA, {"model": {"lstm": {"mixed_precision": "bf16"}}},
+                    check_files=False)  # fmt: skip
 
 
 def test_cuda_without_a_gpu_and_unknown_values_fail_with_the_fix(monkeypatch) -> None:

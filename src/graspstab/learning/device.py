@@ -4,8 +4,10 @@
 on a laptop, in CI (never a GPU) and on a GPU node; ``cpu`` or ``cuda`` force one (``cuda``
 without a GPU fails with the fix). ``mixed_precision: auto`` runs autocast on CUDA only, where it
 pays; ``true`` forces it (bfloat16 on the CPU, which tests use to bound what it changes) and
-``false`` keeps fp32 everywhere. bfloat16 needs no loss scaling; a GPU without bfloat16 gets
-float16 with a gradient scaler.
+``false`` keeps fp32 everywhere. ``native`` runs autocast where the hardware computes in half
+precision natively: on CUDA, and on a CPU with bfloat16 instructions (AMX or AVX512-BF16), else
+fp32, since a CPU without them emulates bfloat16 more slowly than it runs fp32. bfloat16 needs no
+loss scaling; a GPU without bfloat16 gets float16 with a gradient scaler.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass
 import torch
 
 DEVICES = ("auto", "cpu", "cuda")
-PRECISIONS = ("auto", True, False)
+PRECISIONS = ("auto", "native", True, False)
 
 
 @dataclass(frozen=True)
@@ -51,13 +53,18 @@ class Placement:
                 else "float32"}  # fmt: skip
 
 
+def cpu_has_native_bf16() -> bool:
+    """Whether this CPU computes bfloat16 in hardware (oneDNN's check: AVX512-BF16 or AMX)."""
+    return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
+
+
 def resolve(device: str = "auto", mixed_precision: str | bool = "auto") -> Placement:
     """The placement that ``train.device`` and ``train.mixed_precision`` name on this machine."""
     if device not in DEVICES:
         raise ValueError(f"train.device = {device!r} is not one of {DEVICES}")
     if mixed_precision not in PRECISIONS:
         raise ValueError(
-            f"train.mixed_precision = {mixed_precision!r} is not one of auto, true, false"
+            f"train.mixed_precision = {mixed_precision!r} is not one of auto, native, true, false"
         )
     cuda = torch.cuda.is_available()
     if device == "cuda" and not cuda:
@@ -66,7 +73,12 @@ def resolve(device: str = "auto", mixed_precision: str | bool = "auto") -> Place
             "set train.device: auto (or cpu), or install a CUDA build of torch on a GPU machine."
         )
     dev = torch.device("cuda" if device == "cuda" or (device == "auto" and cuda) else "cpu")
-    amp = dev.type == "cuda" if mixed_precision == "auto" else bool(mixed_precision)
+    if mixed_precision == "auto":
+        amp = dev.type == "cuda"
+    elif mixed_precision == "native":
+        amp = dev.type == "cuda" or cpu_has_native_bf16()
+    else:
+        amp = bool(mixed_precision)
     if not amp:
         return Placement(dev, None)
     if dev.type == "cuda" and not torch.cuda.is_bf16_supported():

@@ -46,7 +46,7 @@ class TrainSettings:
     class_weighting: bool = False  # weight unstable examples by class frequency (table 4.1)
     eval_batch_size: int = 1024
     device: str = "auto"  # auto | cpu | cuda (graspstab.learning.device)
-    mixed_precision: str | bool = "auto"  # auto (CUDA only) | true | false
+    mixed_precision: str | bool = "auto"  # auto (CUDA only) | native | true | false
 
     @classmethod
     def from_config(cls, train: Mapping[str, Any], model: Mapping[str, Any]) -> TrainSettings:
