@@ -3,7 +3,9 @@
 Prints per object: replays, held to the end, contact lost and too deep (both stopped early),
 diverged, replays whose d_t stays below -8 mm for at least 1 s (the labelling stage's rejection
 rule, 3.3.1, applied here to the whole replay), the median speed of the held objects over their
-last second (creep), and the simulated and wall time.
+last second (creep), the simulated and wall time, and, when the baseline dataset exists, the
+replays that give it no window and their wall time (what a filter before the replay could save
+at most).
 
     python benchmarks/replay_summary.py <workdir>
 """
@@ -34,9 +36,15 @@ def main() -> None:
     dt = args.timestep
     print(
         f"{'object':22s} replays  held  lost  too deep  diverged  deep>=1s  creep q50 [mm/s]  "
-        "simulated [s]  wall [s]"
+        "simulated [s]  wall [s]  windowless  windowless wall [s]"
     )
+    index_path = args.workdir / "results" / "datasets" / "baseline" / "index.parquet"
+    yielding = (
+        set(pl.read_parquet(index_path).select("object", "shard", "grasp_id").unique().rows())
+        if index_path.exists() else None
+    )  # fmt: skip
     totals = np.zeros(6, dtype=int)
+    sums = np.zeros(4)
     for obj_dir in sorted((args.workdir / "results" / "replay").iterdir()):
         tables = sorted(obj_dir.glob("replays_*.parquet"))
         if not tables:
@@ -63,13 +71,23 @@ def main() -> None:
         ]
         totals += counts
         med = f"{np.median(creep) * 1000:.3f}" if creep else "n/a"
+        none, none_wall = "n/a", "n/a"
+        row_sums = [table["duration_s"].sum(), table["wall_s"].sum(), 0.0, 0.0]
+        if yielding is not None:
+            keys = zip(table["object"], table["shard"], table["grasp_id"], strict=True)
+            empty = np.array([k not in yielding for k in keys])
+            row_sums[2:] = [float(empty.sum()), float(table["wall_s"].to_numpy()[empty].sum())]
+            none, none_wall = f"{int(row_sums[2])}", f"{row_sums[3]:.0f}"
+        sums += row_sums
         print(
             f"{obj_dir.name:22s} {counts[0]:7d} {counts[1]:5d} {counts[2]:5d} {counts[3]:9d} "
-            f"{counts[4]:9d} {counts[5]:9d}  {med:>16s}  {table['duration_s'].sum():13.0f}  "
-            f"{table['wall_s'].sum():8.0f}"
+            f"{counts[4]:9d} {counts[5]:9d}  {med:>16s}  {row_sums[0]:13.0f}  "
+            f"{row_sums[1]:8.0f}  {none:>10s}  {none_wall:>19s}"
         )
     t = totals
-    print(f"{'total':22s} {t[0]:7d} {t[1]:5d} {t[2]:5d} {t[3]:9d} {t[4]:9d} {t[5]:9d}")
+    tail = f"{int(sums[2]):>10d}  {sums[3]:19.0f}" if yielding is not None else ""
+    print(f"{'total':22s} {t[0]:7d} {t[1]:5d} {t[2]:5d} {t[3]:9d} {t[4]:9d} {t[5]:9d}  "
+          f"{'':16s}  {sums[0]:13.0f}  {sums[1]:8.0f}  {tail}")  # fmt: skip
 
 
 if __name__ == "__main__":
