@@ -82,7 +82,7 @@ def test_profiles_protocol_choices():
     assert swapped["synthesis"]["energy"]["name"] == "hpen"
     assert _compose({"contact": "strict"})["replay"]["contact"]["cone"] == "elliptic"
     # the study profile: the whole protocol at reduced counts, >= 3 seeds for the baselines (2 for
-    # the sweep, whose 0.5 s point is a third of the profile's cost), sweep 0.01-0.5 s
+    # the sweep, a third of the profile's job-seconds at three), sweep 0.01-0.5 s
     assert len(study["train"]["seeds"]) >= 3 and len(study["sweep"]["seeds"]) >= 2
     assert min(study["sweep"]["windows_s"]) == 0.01 and max(study["sweep"]["windows_s"]) == 0.5
     # ... with 3.4.3's sweep configurations and the creep-free benchmark (issue 15); quick keeps
