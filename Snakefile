@@ -34,6 +34,13 @@ if config["audit"]["enabled"]:
     include: "workflow/rules/audit.smk"
 
 
+# Object-level k-fold cross-validation under each protocol (docs/results.md "Generalisation
+# across objects"), when enabled.
+if config["crossval"]["enabled"]:
+
+    include: "workflow/rules/crossval.smk"
+
+
 include: "workflow/rules/report.smk"
 
 

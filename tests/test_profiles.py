@@ -147,3 +147,28 @@ def test_study_profile_trains_the_creep_free_benchmark_at_its_own_seeds(bare_env
     # the benchmark's monitor runs the creep-free sweep's first seed
     monitor = next(j for j in jobs if j["rule"] == "evaluate_monitor_creep_free")
     assert all("/seed42/" in p for p in monitor["input"] if "/train/sweep/" in p)
+
+
+@pytest.mark.workflow
+def test_wide_profile_tests_every_object_once_per_family_and_protocol(bare_env, tmp_path):
+    """The wide profile's k-fold study: one training job per protocol x (family, variant) x fold
+    x seed, each fold job's assignment testing its own fold's objects only, and the report asks
+    for both protocols' study artefacts."""
+    from graspstab.config import load_config
+    from graspstab.learning.folds import kfold_assignments
+
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "wide"}, check_files=False)
+    cv = cfg["crossval"]
+    proc = _snakemake(tmp_path, bare_env, "--dry-run", "results/report.html", "--config",
+                      "profile=wide")  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    counts = _job_counts(proc.stdout)
+    pairs = len(cv["families"]) + len(cv["variants"]) * len(cv["variant_families"])
+    expected = cv["k"] * pairs * len(cv["seeds"])
+    assert counts["train_fold_model"] == counts["train_fold_model_creep_free"] == expected
+    assert counts["aggregate_crossval"] == counts["aggregate_crossval_creep_free"] == 1
+    folds = kfold_assignments(list(cfg["objects"]["items"]), cv["k"], cv["fold_seed"])
+    tested = sorted(o for a in folds for o, s in a.items() if s == "test")
+    assert tested == sorted(cfg["objects"]["items"])
+    jobs = [j for j in listed_jobs(proc.stdout) if j["rule"] == "train_fold_model"]
+    assert {int(j["wildcards"]["fold"]) for j in jobs} == set(range(cv["k"]))

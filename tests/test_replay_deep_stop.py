@@ -105,7 +105,8 @@ def test_a_stopped_replay_is_one_the_labelling_stage_rejects(deep_start, deep_s,
     cut = usable_interval(speed[:stopped], dist[:stopped], DT, LABELS["settle"],
                           LABELS["contact_loss_s"])  # fmt: skip
     assert full.rejected == "depth" and cut.rejected == "depth"
-    assert deep_start + deep_s >= REPLAY["deep_stop"]["after_s"] + 1.0 - 1e-9
+    # the stretch covers whole rows of DT: it can hold one row more than deep_s / DT
+    assert deep_start + deep_s >= REPLAY["deep_stop"]["after_s"] + 1.0 - DT - 1e-9
 
 
 def test_run_replay_stops_too_deep_and_keeps_the_trace_before() -> None:

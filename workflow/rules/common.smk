@@ -162,6 +162,8 @@ def audit_runs():
 
 # The input audit's artefacts the report reads (set by audit.smk when it runs).
 AUDIT_ARTEFACTS = {}
+# The k-fold study's artefacts per protocol (crossval.smk), empty unless it is enabled.
+CROSSVAL_ARTEFACTS = {}
 
 
 # The sensor-robustness study's artefacts the report reads (set by sensing.smk when it runs).

@@ -102,6 +102,8 @@ rule report:
         **{f"sensing_{k}": v for k, v in SENSING_ARTEFACTS.items()},
         # the input audit's table when it runs, named audit_<artefact>
         **{f"audit_{k}": v for k, v in AUDIT_ARTEFACTS.items()},
+        # the k-fold study's artefacts when it runs, named crossval_<protocol>_<artefact>
+        **{f"crossval_{k}": v for k, v in CROSSVAL_ARTEFACTS.items()},
         rulegraph=rules.rulegraph.output.rules,
         jobgraph=rules.rulegraph.output.jobs,
     output:

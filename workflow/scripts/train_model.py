@@ -25,6 +25,7 @@ def compute() -> None:
         augment=(
             {**p["augment"], "trace_paths": list(sm.input.traces)} if "augment" in p else None
         ),
+        features=p.get("features"),
         log_file=sm.log[0],
     )
 

@@ -13,6 +13,7 @@ CREEP_FREE = "creep_free_"
 MONITOR = "monitor_"
 SENSING = "sensing_"
 AUDIT = "audit_"
+CROSSVAL = "crossval_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -57,4 +58,5 @@ write_report(
     monitor=prefixed(MONITOR),
     sensing=prefixed(SENSING),
     audit=prefixed(AUDIT),
+    crossval=prefixed(CROSSVAL),
 )

@@ -105,10 +105,39 @@ def check_relations(cfg: dict[str, Any]) -> None:
               f"({windows}): the monitor runs the sweep's models at that window, so choose one "
               "of sweep.windows_s or add it there.")  # fmt: skip
     cf_ms = {ms_of(w) for w in cfg["creep_free"]["sweep_windows_s"]}
+    _check_crossval(cfg, sweep_ms, cf_ms)
     if cfg["creep_free"]["enabled"] and ms_of(cfg["monitor"]["window_s"]) not in cf_ms:
         _fail(f"monitor.window_s = {cfg['monitor']['window_s']} s is not among "
               f"creep_free.sweep_windows_s ({list(cfg['creep_free']['sweep_windows_s'])}): the "
               "monitor also runs on the creep-free benchmark's sweep models: add it there.")
+
+
+def _check_crossval(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int]) -> None:
+    """The k-fold study's folds fit the objects, its window is a sweep dataset, and the
+    creep-free protocol has its benchmark."""
+    cv = cfg["crossval"]
+    if not cv["enabled"]:
+        return
+    _unique(list(cv["seeds"]), "crossval.seeds")
+    n = len(cfg["only_objects"] or cfg["objects"]["items"])
+    if cv["k"] > n:
+        _fail(f"crossval.k = {cv['k']} folds but the run has {n} objects: every fold needs a "
+              f"test object, so choose k <= {n}.")  # fmt: skip
+    if cv["val_folds"] > cv["k"] - 2:
+        _fail(f"crossval.val_folds = {cv['val_folds']} leaves no training fold with k = "
+              f"{cv['k']}: choose val_folds <= {cv['k'] - 2}.")  # fmt: skip
+    if ms_of(cv["window_s"]) not in sweep_ms:
+        _fail(f"crossval.window_s = {cv['window_s']} s is not a sweep window "
+              f"({list(cfg['sweep']['windows_s'])}): the study trains on the sweep's same-end "
+              "dataset at that window; choose one of sweep.windows_s or add it there.")
+    if "creep_free" in cv["protocols"]:
+        if not cfg["creep_free"]["enabled"]:
+            _fail("crossval.protocols holds creep_free but creep_free.enabled is false: turn the "
+                  "benchmark on (--config 'creep_free={enabled: true}') or drop the protocol.")
+        if ms_of(cv["window_s"]) not in cf_ms:
+            _fail(f"crossval.window_s = {cv['window_s']} s is not among "
+                  f"creep_free.sweep_windows_s ({list(cfg['creep_free']['sweep_windows_s'])}): "
+                  "add it there for the creep-free protocol.")
 
 
 def _check_early_stops(replay: dict[str, Any], labels: dict[str, Any]) -> None:

@@ -38,6 +38,14 @@ class WindowData:
     # raw training windows of the given rows in place of the stored ones (sensor augmentation,
     # graspstab.learning.augmentation); None: the stored windows
     augment: Callable[[np.ndarray], np.ndarray] | None = None
+    # raw windows -> model features before normalisation (graspstab.learning.features); None:
+    # the forces as stored
+    transform: Callable[[np.ndarray], np.ndarray] | None = None
+
+    @property
+    def channels(self) -> int:
+        """Input channels per fingertip the model sees (after ``transform``)."""
+        return int(self.mean.shape[-1])
 
     @property
     def window_steps(self) -> int:
@@ -62,6 +70,8 @@ class WindowData:
         order = np.argsort(rows, kind="stable")
         raw = np.empty((len(rows), *self.windows.shape[1:]), dtype=np.float32)
         raw[order] = self.windows[rows[order]]
+        if self.transform is not None:
+            raw = self.transform(raw)
         raw -= self.mean.astype(np.float32)
         raw /= self.std.astype(np.float32)
         return torch.from_numpy(raw)
@@ -71,6 +81,8 @@ class WindowData:
         if self.augment is None:
             return self.batch(rows)
         raw = self.augment(rows)
+        if self.transform is not None:
+            raw = self.transform(raw)
         raw -= self.mean.astype(np.float32)
         raw /= self.std.astype(np.float32)
         return torch.from_numpy(raw)
@@ -93,6 +105,7 @@ def load_window_data(
     dataset_dir: str | Path,
     assignment: Mapping[str, str] | None = None,
     eps: float | None = None,
+    transform: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> WindowData:
     """Open a dataset directory written by ``label_windows``/``trim_sweep_window``.
 
@@ -127,7 +140,34 @@ def load_window_data(
             windows = _RowView(windows, rows)
         stats = normalisation(windows, index, eps)
         mean, std = np.asarray(stats["mean"]), np.asarray(stats["std"])
-    return WindowData(windows=windows, index=index, mean=mean, std=std, source=root)
+    if transform is not None:
+        mean, std = transformed_statistics(windows, index, transform, eps)
+    return WindowData(windows=windows, index=index, mean=mean, std=std, source=root,
+                      transform=transform)  # fmt: skip
+
+
+def transformed_statistics(
+    windows: np.ndarray, index: pl.DataFrame, transform: Callable[[np.ndarray], np.ndarray],
+    eps: float, chunk: int = 4096,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per fingertip x channel mean and std (floored at ``eps``) of the transformed training
+    windows over all their timesteps (3.5.2 on the model's features), read in chunks."""
+    rows = np.flatnonzero((index["split"] == "train").to_numpy())
+    total = total_sq = None
+    count = 0
+    for i in range(0, len(rows), chunk):
+        x = transform(np.asarray(windows[rows[i : i + chunk]], dtype=np.float32))
+        flat = x.reshape(-1, *x.shape[2:]).astype(np.float64)
+        total = flat.sum(axis=0) if total is None else total + flat.sum(axis=0)
+        sq = (flat**2).sum(axis=0)
+        total_sq = sq if total_sq is None else total_sq + sq
+        count += flat.shape[0]
+    if total is None or count == 0:
+        probe = transform(np.zeros((1, *windows.shape[1:]), dtype=np.float32))
+        return np.zeros(probe.shape[2:]), np.ones(probe.shape[2:])
+    mean = total / count
+    std = np.sqrt(np.maximum(total_sq / count - mean**2, 0.0))
+    return mean, np.maximum(std, eps)
 
 
 class _RowView:

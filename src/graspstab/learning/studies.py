@@ -15,6 +15,7 @@ import torch
 from graspstab.common.io import read_json, read_parquet, write_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.learning import aggregate
+from graspstab.learning import crossval as cv
 from graspstab.learning.data import load_window_data
 from graspstab.learning.latency import measure_latency
 from graspstab.learning.models import build_model
@@ -208,3 +209,64 @@ def aggregate_inputs(
     log.info("input audit:\n%s", summary.filter(pl.col("split") == "test").select(
         "input_set", "family", "auprc_mean", "auprc_std"))  # fmt: skip
     return result
+
+
+def aggregate_crossval(
+    predictions: Sequence[str | Path],
+    run_keys: Sequence[Mapping[str, Any]],
+    dataset_dir: str | Path,
+    properties: Mapping[str, Mapping[str, Any]],
+    protocol: str,
+    bootstrap: Mapping[str, Any],
+    out_dir: str | Path,
+    log_file: str | Path | None = None,
+) -> dict[str, Any]:
+    """Object-level k-fold study of one protocol (graspstab.learning.crossval): per-object,
+    pooled and per-fold test metrics of every learned scorer and the friction-ratio proxy, and
+    the paired learned-against-proxy comparisons over objects. ``properties``: object -> mass,
+    size, shape (the figure's axes)."""
+    setup_logging(log_file)
+    out = Path(out_dir)
+    root = Path(dataset_dir)
+    index = read_parquet(root / "index.parquet")
+    windows = load_window_data(root).windows
+    proxy = pl.DataFrame({"sample_id": index["sample_id"], "score": friction_ratio(windows)})
+    pairs = zip(run_keys, predictions, strict=True)
+    runs = [{**k, "predictions": read_parquet(p)} for k, p in pairs]
+    scored = cv.scored_windows(runs, index, proxy)
+    b = {"resamples": int(bootstrap["resamples"]), "seed": int(bootstrap["seed"]),
+         "level": float(bootstrap["level"])}  # fmt: skip
+    per_object = cv.per_object_table(scored, **b)
+    props = pl.DataFrame([{"object": o, **dict(v)} for o, v in properties.items()])
+    per_object = per_object.join(props, on="object", how="left")
+    pooled = cv.pooled_table(scored, **b)
+    folds = cv.fold_table(scored)
+    paired = cv.paired_table(per_object, **b)
+    learned = sorted(set(scored["scorer"].to_list()) - {cv.PROXY})
+    plain = [s for s in learned if "+" not in s]
+    tested = sorted(set(scored["object"].to_list()))
+    summary = {
+        "protocol": protocol,
+        "objects": len(properties),
+        "tested_objects": tested,
+        "untested_objects": sorted(set(properties) - set(tested)),
+        "folds": int(folds["fold"].n_unique()),
+        "scorers": learned + [cv.PROXY],
+        "bootstrap": b,
+        "pooled": {r["scorer"]: r for r in pooled.iter_rows(named=True)},
+        "fold_mean": {
+            s: {m: float(np.nanmean(g[m].to_numpy())) for m in cv.METRICS}
+            | {f"{m}_std": float(np.nanstd(g[m].to_numpy(), ddof=1)) for m in cv.METRICS}
+            for (s,), g in folds.group_by(["scorer"])
+        },
+        "paired": paired.to_dicts(),
+        "answer": cv.answer(paired, protocol.replace("_", "-"), plain, b["level"]),
+        "answer_variants": cv.answer(paired, protocol.replace("_", "-"), learned, b["level"]),
+    }
+    write_parquet(out / "per_object.parquet", per_object)
+    write_parquet(out / "pooled.parquet", pooled)
+    write_parquet(out / "folds.parquet", folds)
+    write_parquet(out / "paired.parquet", paired)
+    write_json(out / "summary.json", summary)
+    log.info("%s", summary["answer"])
+    return summary

@@ -24,6 +24,7 @@ from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import code_version, compute_platform, stable_hash
 from graspstab.learning.augmentation import attach
 from graspstab.learning.data import WindowData, load_window_data
+from graspstab.learning.features import window_transform
 from graspstab.learning.metrics import (
     METRIC_KEYS,
     UNDEFINED_THRESHOLD,
@@ -110,6 +111,7 @@ def train_model(
     checkpoint: bool = True,
     extra: Mapping[str, Any] | None = None,
     augment: Mapping[str, Any] | None = None,
+    features: Mapping[str, Any] | None = None,
     log_file: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run the per-seed procedure and write its artefacts into ``out_dir``; return the metrics
@@ -121,7 +123,9 @@ def train_model(
     out = Path(out_dir)
     params = {"model": dict(model_spec), "train": dict(train), "seed": int(seed),
               "assignment": dict(assignment) if assignment else None}  # fmt: skip
-    data = load_window_data(dataset_dir, assignment)
+    if features:
+        params["features"] = dict(features)  # only then, so earlier runs keep their hash
+    data = load_window_data(dataset_dir, assignment, transform=window_transform(features))
     if augment is not None:
         params["augment"] = {k: augment[k] for k in ("sensing", "dt")}
         attach(data, augment["sensing"], augment["trace_paths"], augment["trace_keys"],
@@ -132,7 +136,7 @@ def train_model(
     settings = TrainSettings.from_config(train, model_spec)
     torch.manual_seed(seed)
     # the dataset's input layout: 5 fingertips x 2 channels, or an input set's 1 x F
-    inputs = {"fingertips": int(data.windows.shape[2]), "channels": int(data.windows.shape[3])}
+    inputs = {"fingertips": int(data.windows.shape[2]), "channels": data.channels}
     model = build_model(model_spec, **inputs)
     n_params = count_parameters(model)
     log.info("%s: %d trainable parameters, %s", model_spec["family"], n_params, settings)

@@ -67,11 +67,32 @@ def benchmark_wildcards(
             "model": list(config["audit"]["families"]),
             "seed": list(config["audit"]["seeds"] or config["train"]["seeds"]),
         },
+        # the k-fold study (crossval.smk): none unless it is enabled
+        **crossval_wildcards(config, objects),
         "train_split_model": {
             "model": [config["splits"]["family"]],
             "k": list(range(assignments)),
             "seed": list(config["splits"]["seeds"]),
         },
+    }
+
+
+def crossval_wildcards(
+    config: Mapping[str, Any], objects: Sequence[str]
+) -> dict[str, list[dict[str, Any]]]:
+    """The k-fold study's training jobs per protocol (crossval.smk's crossval_keys), and its
+    per-protocol rules' (no wildcards)."""
+    cv = config["crossval"]
+    keys: list[dict[str, Any]] = []
+    if cv["enabled"]:
+        pairs = [("forces", m) for m in cv["families"]] + [
+            (v, m) for v in cv["variants"] for m in cv["variant_families"]
+        ]
+        keys = [{"variant": v, "model": m, "fold": k, "seed": s} for v, m in pairs
+                for k in range(cv["k"]) for s in cv["seeds"]]  # fmt: skip
+    return {
+        "train_fold_model": keys,
+        "train_fold_model_creep_free": keys if "creep_free" in cv["protocols"] else [],
     }
 
 

@@ -19,6 +19,7 @@ from graspstab.learning.presentation import UNDEFINED, finite
 from graspstab.report import dag
 from graspstab.report import html as H
 from graspstab.report.creep_free import Benchmark, creep_free_section
+from graspstab.report.crossval import crossval_section
 from graspstab.report.funnel import funnel, funnel_table
 from graspstab.report.headline import headline_section, run_scale
 from graspstab.report.learning import learning_section
@@ -487,6 +488,7 @@ def write_report(
     monitor: Mapping[str, Any] | None = None,
     sensing: Mapping[str, Any] | None = None,
     audit: Mapping[str, Any] | None = None,
+    crossval: Mapping[str, Any] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
@@ -497,7 +499,9 @@ def write_report(
     set beside the main run's in the section "Two protocols side by side". ``monitor``: the
     streaming monitor's artefacts (``monitor_*`` inputs, prefix stripped), the section
     "Grasp-level warnings". ``sensing``: the sensor-robustness study's artefacts (``sensing_*``
-    inputs), the section "Sensor realism"; ``audit``: the input audit's (``audit_*``)."""
+    inputs), the section "Sensor realism"; ``audit``: the input audit's (``audit_*``);
+    ``crossval``: the k-fold study's (``crossval_<protocol>_*``), the section "Generalisation
+    across objects"."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -544,6 +548,7 @@ def write_report(
                         else None),  # fmt: skip
         sensing_section(sensing, config),
         audit_section(audit),
+        crossval_section(crossval, config),
         *_protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_summaries,
                           learning, figures),  # fmt: skip
         *_provenance_parts(

@@ -1,0 +1,203 @@
+"""The report's "Generalisation across objects" section: the object-level k-fold study of each
+protocol (folds, pooled and per-object tables, the figure, the paired comparisons and the
+one-sentence answers), read from graspstab.learning.studies.aggregate_crossval's files."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from graspstab.common.io import read_json, read_parquet
+from graspstab.report import html as H
+
+PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
+VARIANTS = {
+    "ratio": "the proxy's ratio |f_t|/max(f_n, ratio_eps) per fingertip as a third input channel",
+    "gain": "per-window normalisation by the window's mean total normal force (gain-invariant)",
+    "best_f1": "the best-F1 threshold on validation instead of recall >= 0.9",
+}
+
+
+def _pct(v: Any, lo: Any = None, hi: Any = None) -> str:
+    if v is None or not math.isfinite(float(v)):
+        return "undefined"
+    if lo is None or hi is None or not math.isfinite(float(lo)):
+        return f"{100 * v:.1f}"
+    return f"{100 * v:.1f} [{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
+def _pts(v: Any, lo: Any, hi: Any) -> str:
+    if v is None or not math.isfinite(float(v)):
+        return "undefined"
+    return f"{100 * v:+.1f} [{100 * lo:+.1f}, {100 * hi:+.1f}]"
+
+
+def _protocol_parts(
+    protocol: str, files: Mapping[str, Any], config: Mapping[str, Any]
+) -> list[str]:
+    summary = read_json(Path(files["summary"]))
+    per_object = read_parquet(Path(files["per_object"]))
+    level = round(100 * summary["bootstrap"]["level"])
+    name = PROTOCOLS.get(protocol, protocol)
+    parts = [H.heading(3, f"crossval-{protocol}", f"Cross-validation: {name}")]
+    parts.append(f'<p class="answer"><strong>{H.esc(summary["answer"])}</strong></p>')
+    pooled = summary["pooled"]
+    folds = summary["fold_mean"]
+    rows = []
+    for scorer in summary["scorers"]:
+        p, f = pooled[scorer], folds.get(scorer, {})
+        rows.append(
+            [
+                scorer,
+                p["windows"],
+                p["unstable"],
+                p["grasps"],
+                _pct(p["auprc"], p["auprc_lo"], p["auprc_hi"]),
+                _pct(p["auroc"], p["auroc_lo"], p["auroc_hi"]),
+                f"{100 * f.get('auprc', math.nan):.1f} ± {100 * f.get('auprc_std', math.nan):.1f}",
+            ]
+        )
+    parts.append(
+        H.table(
+            [
+                "scorer",
+                "test windows",
+                "unstable",
+                "grasps",
+                f"pooled AUPRC (%) [{level} % CI]",
+                f"pooled AUROC (%) [{level} % CI]",
+                "AUPRC over folds (%), mean ± std",
+            ],
+            rows,
+            caption=f"Pooled test metrics, {summary['folds']} folds ({name})",
+        )
+    )
+    prows = [
+        [
+            r["scorer"],
+            r["metric"].upper(),
+            r["objects"],
+            _pts(r["mean_diff"], r["lo"], r["hi"]),
+            f"{r['wins']} / {r['losses']} / {r['ties']}",
+            "undefined"
+            if r["sign_p"] is None or not math.isfinite(r["sign_p"])
+            else f"{r['sign_p']:.3g}",
+            r["verdict"],
+        ]
+        for r in summary["paired"]
+    ]
+    parts.append(
+        H.table(
+            [
+                "learned scorer",
+                "metric",
+                "objects",
+                f"learned - proxy (points) [{level} % CI]",
+                "wins / losses / ties",
+                "sign test p",
+                "verdict",
+            ],
+            prows,
+            caption=f"Paired comparison with the friction-ratio proxy over test objects ({name})",
+        )
+    )
+    scorers = summary["scorers"]
+    wide = per_object.pivot(on="scorer", index="object", values="auprc")
+    meta = per_object.unique("object").select(
+        "object", "mass", "size", "shape", "windows", "unstable", "grasps"
+    )
+    table = meta.join(wide, on="object").sort("object")
+    orows = [
+        [
+            r["object"],
+            f"{r['mass']:.3g}",
+            f"{100 * r['size']:.1f}" if r["size"] else "",
+            r["shape"],
+            r["windows"],
+            r["unstable"],
+            r["grasps"],
+            *[_pct(r.get(s)) for s in scorers],
+        ]
+        for r in table.iter_rows(named=True)
+    ]
+    ci = {(r["scorer"], r["object"]): r for r in per_object.iter_rows(named=True)}
+    for row, r in zip(orows, table.iter_rows(named=True), strict=True):
+        for j, s in enumerate(scorers):
+            c = ci.get((s, r["object"]))
+            if c is not None:
+                row[7 + j] = _pct(c["auprc"], c["auprc_lo"], c["auprc_hi"])
+    parts.append(
+        H.table(
+            [
+                "object",
+                "mass (kg)",
+                "size (cm)",
+                "shape",
+                "windows",
+                "unstable",
+                "grasps",
+                *[f"{s} AUPRC (%)" for s in scorers],
+            ],
+            orows,
+            caption=f"Per-object test AUPRC with {level} % grasp-bootstrap intervals ({name})",
+        )
+    )
+    if summary["untested_objects"]:
+        parts.append(
+            "<p>Objects with no labelled window (the hand holds none of their grasps long enough "
+            "for a window, so they have no test turn that can be scored): "
+            + H.esc(", ".join(summary["untested_objects"]))
+            + ".</p>"
+        )
+    parts.append(
+        H.image(
+            Path(files["figure"]),
+            f"per-object AUPRC, {name}",
+            f"Per-object test AUPRC against mass, size and shape class, and the "
+            f"paired differences ({name}).",
+            f"crossval-figure-{protocol}",
+        )
+    )
+    if "answer_variants" in summary and any("+" in s for s in scorers):
+        parts.append(f"<p>With the fairness variants: {H.esc(summary['answer_variants'])}</p>")
+    return parts
+
+
+def crossval_section(crossval: Mapping[str, Any] | None, config: Mapping[str, Any]) -> str:
+    """The section, one part per protocol; a note when the study is off."""
+    parts = [H.heading(2, "crossval", "Generalisation across objects")]
+    cv = config.get("crossval", {})
+    if not crossval or not cv.get("enabled"):
+        parts.append(
+            '<p class="note">This run has no cross-validation (crossval.enabled is '
+            "false; the wide profile runs it: --config profile=wide).</p>"
+        )
+        return "\n".join(parts)
+    variants = "; ".join(f"<em>{v}</em>: {VARIANTS[v]}" for v in cv["variants"])
+    parts.append(
+        f"<p>Object-level {cv['k']}-fold cross-validation over {len(config['objects']['items'])} "
+        f"objects: every object is a test object in exactly one fold, the next fold validates "
+        "(thresholds, early stopping) and the rest train (normalisation). Models: the reference's "
+        f"sweep configurations (3.4.3, no tuning, which would choose on other folds' test objects) "
+        f"at {cv['window_s']} s, seeds {cv['seeds']}. Per-object intervals resample grasps; the "
+        "paired comparison resamples objects (paired bootstrap of the mean per-object difference "
+        "in test AUPRC, learned minus proxy), with a two-sided sign test over objects beside it. "
+        "The friction-ratio proxy needs no training and scores every window once. "
+        + (
+            f"Fairness variants ({', '.join(cv['variant_families'])}): {variants}."
+            if variants
+            else ""
+        )
+        + "</p>"
+    )
+    for protocol in cv["protocols"]:
+        files = {
+            k.removeprefix(f"{protocol}_"): v
+            for k, v in crossval.items()
+            if k.startswith(f"{protocol}_")
+        }
+        if "summary" in files:
+            parts += _protocol_parts(protocol, files, config)
+    return "\n".join(parts)

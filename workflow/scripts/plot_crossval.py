@@ -1,0 +1,16 @@
+"""Snakemake wrapper: the k-fold study's per-object figure (graspstab.learning.figures.crossval)."""
+
+from pathlib import Path
+
+from graspstab.common.io import read_json, read_parquet
+from graspstab.common.logs import setup_logging
+from graspstab.learning.figures.crossval import plot_crossval
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+setup_logging(sm.log[0])
+plot_crossval(
+    read_parquet(sm.input.per_object),
+    read_json(sm.input.summary),
+    Path(sm.output[0]),
+    int(sm.params.dpi),
+)
