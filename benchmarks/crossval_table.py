@@ -1,5 +1,6 @@
 """The k-fold study's figures of a finished run as Markdown, for the docs: per protocol the pooled
-metrics per scorer, the paired comparisons with the proxy and the one-sentence answer.
+metrics per scorer, the paired comparisons with the proxy and the one-sentence answer, what each
+fairness variant changes against its plain family, and the thresholded test metrics.
 
     python benchmarks/crossval_table.py <workdir>
 """
@@ -63,6 +64,35 @@ def main() -> None:
                 f"{r['wins']} / {r['losses']} | {p:.3g} | {r['verdict']} |"
             )
         print(f"\n{s['answer']}\n")
+        if s.get("answer_variants") and s.get("variants"):
+            print(f"With the variants: {s['answer_variants']}\n")
+        if s.get("variants"):
+            print(
+                f"| variant | against | metric | objects | variant - plain, points [{level} % CI] "
+                "| wins / losses | sign test p | verdict |"
+            )
+            print("|---|---|---|---:|---|---|---:|---|")
+            for r in s["variants"]:
+                d = f"{100 * r['mean_diff']:+.1f} [{100 * r['lo']:+.1f}, {100 * r['hi']:+.1f}]"
+                print(
+                    f"| {r['scorer']} | {r['against']} | {r['metric'].upper()} | {r['objects']} "
+                    f"| {d} | {r['wins']} / {r['losses']} | {r['sign_p']:.3g} | {r['verdict']} |"
+                )
+            print()
+        if s.get("thresholds"):
+            print(
+                "| learned scorer | threshold rule | fold runs | threshold, median [min, max] | "
+                "at grid floor | precision | recall | F1 | false-positive rate |"
+            )
+            print("|---|---|---:|---|---:|---:|---:|---:|---:|")
+            for r in s["thresholds"]:
+                print(
+                    f"| {r['scorer']} | {r['rule']} | {r['runs']} | {r['threshold_median']:.3f} "
+                    f"[{r['threshold_min']:.3f}, {r['threshold_max']:.3f}] | {r['at_floor']} | "
+                    f"{pct(r['precision'])} | {pct(r['recall'])} | {pct(r['f1'])} | "
+                    f"{pct(r['fpr'])} |"
+                )
+            print()
 
 
 if __name__ == "__main__":

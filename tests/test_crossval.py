@@ -215,33 +215,93 @@ def test_the_study_from_fold_predictions_to_the_report_section(tmp_path):
         {"mean": np.zeros((5, 2)).tolist(), "std": np.ones((5, 2)).tolist(), "eps": 1e-6},
     )
     folds = kfold_assignments(objects, 3, seed=0)
-    keys, paths = [], []
+    keys, paths, metric_paths = [], [], []
+    grid = [0.05, 0.95, 0.005]
+    alarms = {"forces": np.zeros(4, dtype=np.int64)}
     for k, a in enumerate(folds):
         test = index.filter(pl.col("object").is_in([o for o, s in a.items() if s == "test"]))
-        prob = np.clip(test["label"].to_numpy() * 0.6 + rng.uniform(0, 0.5, test.height), 0, 1)
-        p = tmp_path / f"f{k}.parquet"
-        write_parquet(
-            p,
-            test.select(
-                "sample_id", "object", pl.lit("test").alias("split"), pl.Series("prob", prob)
-            ),
-        )
-        keys.append({"family": "gru", "variant": "forces", "fold": k, "seed": 42})
-        paths.append(p)
+        label = test["label"].to_numpy()
+        # the plain run separates the classes; the "gain" variant here scores noise, and its
+        # threshold sits on the grid's floor, so it alarms on every window
+        probs = {
+            "forces": np.clip(label * 0.6 + rng.uniform(0, 0.5, test.height), 0, 1),
+            "gain": rng.uniform(0.1, 1.0, test.height),
+        }
+        for variant, prob in probs.items():
+            p = tmp_path / f"{variant}_f{k}.parquet"
+            write_parquet(
+                p,
+                test.select(
+                    "sample_id",
+                    "object",
+                    "label",
+                    pl.lit("test").alias("split"),
+                    pl.Series("prob", prob),
+                ),
+            )
+            t = 0.5 if variant == "forces" else grid[0]
+            if variant == "forces":
+                pred = prob >= t
+                alarms["forces"] += [
+                    np.sum(pred & (label == 1)), np.sum(pred & (label == 0)),
+                    np.sum(~pred & (label == 1)), np.sum(~pred & (label == 0)),
+                ]  # fmt: skip
+            m = tmp_path / f"{variant}_f{k}.json"
+            write_json(
+                m,
+                {
+                    "threshold": {"threshold": t},
+                    "params": {
+                        "train": {
+                            "threshold": {
+                                "rule": "min_recall",
+                                "min_recall": 0.9,
+                                "grid": grid,
+                            }
+                        }
+                    },
+                },  # fmt: skip
+            )
+            keys.append({"family": "gru", "variant": variant, "fold": k, "seed": 42})
+            paths.append(p)
+            metric_paths.append(m)
     props = {
         o: {"mass": 0.1 * (i + 1), "shape": "box", "size": 0.05} for i, o in enumerate(objects)
     }
     out = tmp_path / "study"
     summary = studies.aggregate_crossval(
-        paths, keys, data, props, "reference", {"resamples": 200, "level": 0.95, "seed": 0}, out
+        paths,
+        metric_paths,
+        keys,
+        data,
+        props,
+        "reference",
+        {"resamples": 200, "level": 0.95, "seed": 0},
+        out,
     )
     assert summary["tested_objects"] == objects and summary["folds"] == 3
     assert summary["pooled"]["gru"]["windows"] == index.height
     paired = {(r["scorer"], r["metric"]): r for r in summary["paired"]}
     assert paired[("gru", "auprc")]["verdict"] == "learned better"
     assert "beats the friction-ratio proxy" in summary["answer"]
+    # the answer sentence is about the plain families; the noise variant loses to its family
+    assert "gru+gain" not in summary["answer"]
+    change = {(r["scorer"], r["metric"]): r for r in summary["variants"]}
+    assert change[("gru+gain", "auprc")]["against"] == "gru"
+    assert change[("gru+gain", "auprc")]["verdict"] == "plain better"
+    assert change[("gru+gain", "auprc")]["objects"] == len(objects)
+    # thresholded metrics pooled over folds, against the confusion counts computed here
+    thr = {r["scorer"]: r for r in summary["thresholds"]}
+    tp, fp, fn, tn = (int(x) for x in alarms["forces"])
+    assert thr["gru"]["precision"] == pytest.approx(tp / (tp + fp))
+    assert thr["gru"]["recall"] == pytest.approx(tp / (tp + fn))
+    assert thr["gru"]["fpr"] == pytest.approx(fp / (fp + tn))
+    assert thr["gru"]["at_floor"] == 0 and thr["gru+gain"]["at_floor"] == 3
+    assert thr["gru+gain"]["recall"] == 1.0 and thr["gru+gain"]["fpr"] == 1.0
+    assert thr["gru"]["rule"] == "recall >= 0.9" and thr["gru"]["runs"] == 3
     per_object = read_parquet(out / "per_object.parquet")
-    assert set(per_object["scorer"]) == {"gru", "proxy"} and per_object.height == 18
+    assert set(per_object["scorer"]) == {"gru", "gru+gain", "proxy"}
+    assert per_object.height == 27
     figure = plot_crossval(per_object, read_json(out / "summary.json"), tmp_path / "f.png", 60)
     files = {f"reference_{n}": out / f"{n}.parquet" for n in ("per_object", "pooled", "paired")}
     files |= {"reference_summary": out / "summary.json", "reference_figure": figure}

@@ -102,6 +102,7 @@ rule train_fold_model:
 rule aggregate_crossval:
     input:
         predictions=crossval_runs("results", "predictions.parquet"),
+        metrics=crossval_runs("results", "metrics.json"),
         meta=object_outputs("meta.json"),
         **dataset_inputs(f"results/datasets/sweep/w{CV_MS}ms"),
     output:
@@ -170,6 +171,7 @@ if "creep_free" in CV["protocols"]:
     use rule aggregate_crossval as aggregate_crossval_creep_free with:
         input:
             predictions=crossval_runs(CREEP_FREE, "predictions.parquet"),
+            metrics=crossval_runs(CREEP_FREE, "metrics.json"),
             meta=object_outputs("meta.json"),
             **dataset_inputs(f"{CREEP_FREE}/datasets/sweep/w{CV_MS}ms"),
         output:

@@ -12,6 +12,7 @@ for path in sm.input.meta:
     props[Path(path).parent.name]["size"] = float(max(read_json(path)["extents"]))
 studies.aggregate_crossval(
     list(sm.input.predictions),
+    list(sm.input.metrics),
     list(sm.params.run_keys),
     Path(sm.input.index).parent,
     props,

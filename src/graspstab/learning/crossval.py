@@ -215,6 +215,89 @@ def paired_table(
     return pl.DataFrame(rows)
 
 
+def variant_table(
+    per_object: pl.DataFrame, resamples: int, seed: int, level: float = 0.95
+) -> pl.DataFrame:
+    """What each fairness variant changes: every ``family+variant`` scorer against its plain
+    family, per metric, paired over objects as :func:`paired_comparison` (verdicts renamed
+    "variant better" / "plain better")."""
+    rng = np.random.default_rng(seed)
+    rename = {"learned better": "variant better", "proxy better": "plain better"}
+    rows = []
+    for scorer in sorted(s for s in set(per_object["scorer"].to_list()) if "+" in s):
+        family = scorer.split("+", 1)[0]
+        mine = per_object.filter(pl.col("scorer") == scorer)
+        base = per_object.filter(pl.col("scorer") == family)
+        if base.is_empty():
+            continue
+        for metric in METRICS:
+            row = paired_comparison(
+                dict(zip(mine["object"], mine[metric], strict=True)),
+                dict(zip(base["object"], base[metric], strict=True)),
+                resamples,
+                rng,
+                level,
+            )
+            row["verdict"] = rename.get(row["verdict"], row["verdict"])
+            rows.append({"scorer": scorer, "against": family, "metric": metric, **row})
+    return pl.DataFrame(rows)
+
+
+def threshold_counts(probs: np.ndarray, labels: np.ndarray, threshold: float) -> np.ndarray:
+    """(tp, fp, fn, tn) of the alarm ``probs >= threshold`` against ``labels``."""
+    pred, pos = np.asarray(probs) >= threshold, np.asarray(labels) == 1
+    return np.array(
+        [np.sum(pred & pos), np.sum(pred & ~pos), np.sum(~pred & pos), np.sum(~pred & ~pos)],
+        dtype=np.int64,
+    )
+
+
+def threshold_table(runs: Sequence[Mapping[str, Any]]) -> pl.DataFrame:
+    """Per learned scorer, the test windows at each fold's own validation threshold, pooled over
+    folds and seeds: precision, recall, F1, false-positive rate, the thresholds chosen and how
+    many sit on the grid's floor (where a recall rule that cannot be met ends up). AUPRC and AUROC
+    do not see the threshold, so this is what a threshold rule changes.
+
+    ``runs``: dicts with family, variant, ``predictions`` (split, label, prob) and ``metrics``
+    (the run's metrics.json: ``threshold.threshold`` and ``params.train.threshold``)."""
+    total: dict[str, np.ndarray] = {}
+    chosen: dict[str, list[float]] = {}
+    floor: dict[str, int] = {}
+    rules: dict[str, set[str]] = {}
+    for r in runs:
+        name = scorer_name(r["family"], r["variant"])
+        rule = r["metrics"]["params"]["train"]["threshold"]
+        t = float(r["metrics"]["threshold"]["threshold"])
+        test = r["predictions"].filter(pl.col("split") == "test")
+        c = threshold_counts(test["prob"].to_numpy(), test["label"].to_numpy(), t)
+        total[name] = total.get(name, np.zeros(4, dtype=np.int64)) + c
+        chosen.setdefault(name, []).append(t)
+        floor[name] = floor.get(name, 0) + int(np.isclose(t, float(rule["grid"][0])))
+        rules.setdefault(name, set()).add(
+            "best F1" if rule["rule"] == "best_f1" else f"recall >= {rule['min_recall']:g}"
+        )
+    rows = []
+    for name in sorted(total):
+        tp, fp, fn, tn = (int(x) for x in total[name])
+        ts = np.asarray(chosen[name])
+        rows.append(
+            {
+                "scorer": name,
+                "rule": ", ".join(sorted(rules[name])),
+                "runs": int(ts.size),
+                "threshold_median": float(np.median(ts)),
+                "threshold_min": float(ts.min()),
+                "threshold_max": float(ts.max()),
+                "at_floor": floor[name],
+                "precision": tp / (tp + fp) if tp + fp else math.nan,
+                "recall": tp / (tp + fn) if tp + fn else math.nan,
+                "f1": 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else math.nan,
+                "fpr": fp / (fp + tn) if fp + tn else math.nan,
+            }
+        )
+    return pl.DataFrame(rows)
+
+
 def answer(paired: pl.DataFrame, protocol: str, scorers: Sequence[str], level: float) -> str:
     """The one-sentence answer for a protocol: do the learned models beat the proxy on unseen
     objects (test AUPRC, paired bootstrap over objects)?"""

@@ -213,6 +213,7 @@ def aggregate_inputs(
 
 def aggregate_crossval(
     predictions: Sequence[str | Path],
+    metrics: Sequence[str | Path],
     run_keys: Sequence[Mapping[str, Any]],
     dataset_dir: str | Path,
     properties: Mapping[str, Mapping[str, Any]],
@@ -223,16 +224,18 @@ def aggregate_crossval(
 ) -> dict[str, Any]:
     """Object-level k-fold study of one protocol (graspstab.learning.crossval): per-object,
     pooled and per-fold test metrics of every learned scorer and the friction-ratio proxy, and
-    the paired learned-against-proxy comparisons over objects. ``properties``: object -> mass,
-    size, shape (the figure's axes)."""
+    the paired learned-against-proxy comparisons over objects; what each fairness variant
+    changes against its plain family; every scorer's thresholded test metrics. ``metrics``: each
+    run's metrics.json (its threshold), in ``predictions``' order. ``properties``: object ->
+    mass, size, shape (the figure's axes)."""
     setup_logging(log_file)
     out = Path(out_dir)
     root = Path(dataset_dir)
     index = read_parquet(root / "index.parquet")
     windows = load_window_data(root).windows
     proxy = pl.DataFrame({"sample_id": index["sample_id"], "score": friction_ratio(windows)})
-    pairs = zip(run_keys, predictions, strict=True)
-    runs = [{**k, "predictions": read_parquet(p)} for k, p in pairs]
+    triples = zip(run_keys, predictions, metrics, strict=True)
+    runs = [{**k, "predictions": read_parquet(p), "metrics": read_json(m)} for k, p, m in triples]
     scored = cv.scored_windows(runs, index, proxy)
     b = {"resamples": int(bootstrap["resamples"]), "seed": int(bootstrap["seed"]),
          "level": float(bootstrap["level"])}  # fmt: skip
@@ -242,6 +245,7 @@ def aggregate_crossval(
     pooled = cv.pooled_table(scored, **b)
     folds = cv.fold_table(scored)
     paired = cv.paired_table(per_object, **b)
+    variants = cv.variant_table(per_object, **b)
     learned = sorted(set(scored["scorer"].to_list()) - {cv.PROXY})
     plain = [s for s in learned if "+" not in s]
     tested = sorted(set(scored["object"].to_list()))
@@ -260,6 +264,8 @@ def aggregate_crossval(
             for (s,), g in folds.group_by(["scorer"])
         },
         "paired": paired.to_dicts(),
+        "variants": variants.to_dicts(),
+        "thresholds": cv.threshold_table(runs).to_dicts(),
         "answer": cv.answer(paired, protocol.replace("_", "-"), plain, b["level"]),
         "answer_variants": cv.answer(paired, protocol.replace("_", "-"), learned, b["level"]),
     }

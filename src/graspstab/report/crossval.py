@@ -162,7 +162,78 @@ def _protocol_parts(
     )
     if "answer_variants" in summary and any("+" in s for s in scorers):
         parts.append(f"<p>With the fairness variants: {H.esc(summary['answer_variants'])}</p>")
+    if summary.get("variants"):
+        parts.append(_variant_table(summary, level, name))
+    if summary.get("thresholds"):
+        parts.append(_threshold_table(summary, name))
     return parts
+
+
+def _variant_table(summary: Mapping[str, Any], level: int, name: str) -> str:
+    rows = [
+        [
+            r["scorer"],
+            r["against"],
+            r["metric"].upper(),
+            r["objects"],
+            _pts(r["mean_diff"], r["lo"], r["hi"]),
+            f"{r['wins']} / {r['losses']} / {r['ties']}",
+            "undefined"
+            if r["sign_p"] is None or not math.isfinite(r["sign_p"])
+            else f"{r['sign_p']:.3g}",
+            r["verdict"],
+        ]
+        for r in summary["variants"]
+    ]
+    return H.table(
+        [
+            "variant",
+            "against",
+            "metric",
+            "objects",
+            f"variant - plain (points) [{level} % CI]",
+            "wins / losses / ties",
+            "sign test p",
+            "verdict",
+        ],
+        rows,
+        caption=f"What each fairness variant changes, paired over test objects ({name})",
+    )
+
+
+def _threshold_table(summary: Mapping[str, Any], name: str) -> str:
+    rows = [
+        [
+            r["scorer"],
+            r["rule"],
+            r["runs"],
+            f"{r['threshold_median']:.3f} [{r['threshold_min']:.3f}, {r['threshold_max']:.3f}]",
+            r["at_floor"],
+            _pct(r["precision"]),
+            _pct(r["recall"]),
+            _pct(r["f1"]),
+            _pct(r["fpr"]),
+        ]
+        for r in summary["thresholds"]
+    ]
+    return H.table(
+        [
+            "learned scorer",
+            "threshold rule",
+            "fold runs",
+            "threshold, median [min, max]",
+            "at the grid's floor",
+            "precision (%)",
+            "recall (%)",
+            "F1 (%)",
+            "false-positive rate (%)",
+        ],
+        rows,
+        caption=(
+            f"Test windows at each fold's own validation threshold, pooled over folds ({name}); "
+            "AUPRC and AUROC do not see the threshold, so this is what a threshold rule changes"
+        ),
+    )
 
 
 def crossval_section(crossval: Mapping[str, Any] | None, config: Mapping[str, Any]) -> str:
