@@ -13,7 +13,7 @@ import graspstab
 # asset catalogue, so it sits above ``assets``.
 STAGES = [
     "common", "assets", "config", "objects", "hand", "synthesis", "replay", "labels", "sensing",
-    "learning", "monitor", "report",
+    "learning", "monitor", "closedloop", "report",
 ]  # fmt: skip
 ROOT = Path(graspstab.__file__).resolve().parent
 

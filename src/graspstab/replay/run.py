@@ -10,11 +10,16 @@ Stop rules: ``contact_lost`` once no hand-object contact has existed for ``stop_
 entirely after the settle search (so 3.3.1's depth rule rejects the grasp whatever its settle
 index: :class:`DeepStop`); ``diverged`` on a non-finite state or a MuJoCo warning (such replays
 are flagged and excluded); ``completed`` after all steps.
+
+A :class:`Controller` (the closed loop's grip reflex) may read the fingertip forces between chunks
+and move the actuator targets: it sets how long each chunk may be, supplies every step's targets
+and sees each chunk's forces as soon as the chunk is simulated, as a controller on the hand would.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import mujoco
 import mujoco.rollout
@@ -54,6 +59,28 @@ class DeepStop:
         return hit, min(tail, self.run)
 
 
+class Controller(Protocol):
+    """What the replay needs of a controller in the loop (``graspstab.closedloop``)."""
+
+    def chunk_steps(self, first: int, default: int) -> int:
+        """Steps the next rollout may take from step ``first`` (at most ``default``) before the
+        controller must see the forces again."""
+        ...
+
+    def targets(self, first: int, n: int, ctrl: np.ndarray) -> np.ndarray:
+        """Actuator targets (n, nu) for steps ``first .. first + n - 1`` given the open-loop
+        targets ``ctrl`` (nu,)."""
+        ...
+
+    def observe(self, first: int, normal: np.ndarray, shear: np.ndarray) -> None:
+        """Take the fingertip forces (n, 5) [N] that steps ``first ..`` recorded."""
+        ...
+
+
+#: trace channel of a controlled replay: how far the targets were moved in, per step [rad]
+REFLEX = "reflex"
+
+
 @dataclass
 class ReplayResult:
     """Trace rows (float32) and how the replay ended."""
@@ -83,6 +110,7 @@ def run_replay(
     load: RampLoad | None = None,
     load_body: int = -1,
     deep_stop: DeepStop | None = None,
+    controller: Controller | None = None,
 ) -> ReplayResult:
     """Roll out ``steps`` steps from ``data``'s current state with its current controls.
 
@@ -92,7 +120,9 @@ def run_replay(
     protocol's external force on body ``load_body`` (:mod:`graspstab.replay.ramp`; it sets the
     chunk lengths while it needs the object's speed), recorded as trace channel ``load``
     (simulation frame, the force during step t). ``deep_stop`` (None: never) stops a replay
-    the depth rule will reject.
+    the depth rule will reject. ``controller`` (None: open loop) closes the loop: its targets
+    drive the actuators and it sees every chunk's forces before the next chunk runs; the
+    largest target offset it applies at each step is trace channel ``reflex``.
     """
     if chunk < 1 or steps < 1:
         raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
@@ -102,6 +132,9 @@ def run_replay(
     if load is not None and load_body < 0:
         raise ValueError(f"a load needs the body it acts on, got body {load_body}")
     channels = CHANNELS if load is None else (*CHANNELS, LOAD)
+    if controller is not None:
+        channels = (*channels, REFLEX)
+    base = data.ctrl.copy()
     parts: dict[str, list[np.ndarray]] = {c: [] for c in channels}
     done, reason, overflow, lost_run, deep_run = 0, "completed", 0, 0, 0
     pending: list[np.ndarray] = []  # raw rows whose force channels are not computed yet
@@ -124,9 +157,15 @@ def run_replay(
         mujoco.mj_getState(model, data, state, spec)
         if load is not None:
             n = load.chunk_steps(done, n)
+        if controller is not None:
+            n = max(1, controller.chunk_steps(done, n))
+            targets = controller.targets(done, n, base)
+            control = targets[None]
+        if load is not None:
             forces = load.forces(done, n)
             control_spec = CONTROL_SPEC
-            control = control_rows(model, data.ctrl, load_body, forces)
+            control = control_rows(model, targets if controller is not None else data.ctrl,
+                                   load_body, forces)  # fmt: skip
         _, sensordata = mujoco.rollout.rollout(
             model,
             data,
@@ -140,12 +179,22 @@ def run_replay(
         if load is not None:
             rows[LOAD] = forces
             load.observe(done, np.linalg.norm(rows["velocity"], axis=1))
+        if controller is not None:
+            rows[REFLEX] = np.max(targets - base[None], axis=1, initial=0.0)
         finite = np.isfinite(sensordata[0]).all(axis=1)
         ok = int(np.argmin(finite)) if not finite.all() else n
         for c in rows:
             parts[c].append(rows[c][:ok].astype(np.float32))
-        pending.append(np.array(sensordata[0][:ok]))
-        pending_rows += ok
+        if controller is not None:  # the controller reads this chunk's forces now
+            now = force_features(sensordata[0][:ok], layout)
+            for c, v in now.items():
+                if c in parts:
+                    parts[c].append(v.astype(np.float32))
+            overflow = max(overflow, int(now["overflow"].max(initial=0)))
+            controller.observe(done, now["normal"], now["shear"])
+        else:
+            pending.append(np.array(sensordata[0][:ok]))
+            pending_rows += ok
         if pending_rows >= FORCE_BATCH_ROWS:
             overflow = max(overflow, flush())
         done += ok
