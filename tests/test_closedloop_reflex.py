@@ -108,6 +108,15 @@ def test_reflex_fires_only_on_a_warning() -> None:
     np.testing.assert_allclose(got, expected(800, 175), atol=1e-12)
 
 
+def test_warnings_before_the_arm_step_are_ignored() -> None:
+    normal, shear = planted(800, [(137, 800)])
+    r = reflex(monitor())
+    r.arm_step = 300  # a warning already up when the reflex arms counts as raised there
+    got = drive(r, normal, shear, 1000)
+    assert r.warn_frames == [300] and r.on_steps == [322]
+    np.testing.assert_allclose(got, expected(800, 322), atol=1e-12)
+
+
 def test_calm_release_returns_the_grip_and_a_new_warning_tightens_again() -> None:
     # unstable scores at 143 .. 293, stable from 303 on: down 20 frames (0.01 s) at 322, so the
     # release acts from 322 + 1 + 21 = 344; a second plant from 600 warns at 603, acts at 625

@@ -13,7 +13,8 @@ Causality sets the chunking: every warning from frames before step ``first`` is 
 chunk from ``first`` is planned, and one from a later frame acts at ``first + 1 + delay`` at the
 earliest, so a chunk of ``delay + 1`` steps never needs a decision it has not seen. Python runs
 once a chunk, not once a step. Without a monitor (``fire_at`` given) the reflex is a fixed
-schedule: the "always tighten" and "oracle" policies.
+schedule: the "always tighten" and "oracle" policies. An ``arm_step`` ignores warnings on
+earlier frames (the monitor still reads them).
 """
 
 from __future__ import annotations
@@ -68,6 +69,7 @@ class GripReflex:
     monitor: Any = None
     latency_s: float = 0.0
     fire_at: int | None = None
+    arm_step: int = 0  # warnings on earlier frames are ignored (one up at it rises there)
     # what happened: the steps a tightening started and a release started, and the warnings' frames
     on_steps: list[int] = field(default_factory=list)
     off_steps: list[int] = field(default_factory=list)
@@ -141,8 +143,9 @@ class GripReflex:
         if not self.live:
             return
         trace = self.monitor.push_many(np.stack([normal, shear], axis=-1))
-        for k, up in enumerate(trace.warning):
+        for k, raw in enumerate(trace.warning):
             frame = first + k
+            up = bool(raw) and frame >= self.arm_step
             if up and not self._warning:
                 self.warn_frames.append(frame)
                 self._down_since = None

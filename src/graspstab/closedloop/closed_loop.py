@@ -1,0 +1,118 @@
+"""Closed-loop replays of one object's grasps: every policy on the same grasps, seeds and load.
+
+Each grasp is replayed first without a reflex (the baseline every policy is judged against,
+``closedloop.outcome``), then once per policy with its reflex in the loop. The physics is the
+replay stage's (``replay.run.run_replay``, the protocol's load, the same stop rules); only the
+reflex reads the sensors. Under the load ramp the closed loop's load path is its own option
+(``closed_loop.ramp_path``): ``hold`` keeps the load the object first slid at, so a grip that
+raises the friction capacity above it arrests the slip.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+import polars as pl
+
+from graspstab.closedloop.outcome import baseline_of, outcome
+from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
+from graspstab.closedloop.reflex import ReflexParams
+from graspstab.common.io import read_parquet
+from graspstab.labels.interval import steps_of
+from graspstab.replay.replay_grasps import deep_stop, grasp_load
+from graspstab.replay.run import ReplayResult, run_replay
+from graspstab.replay.scene import build_replay_scene, place_grasp
+
+log = logging.getLogger("graspstab.closedloop")
+
+
+def with_ramp_path(params: dict[str, Any], path: str | None) -> dict[str, Any]:
+    """The replay params with the load ramp's path replaced (unchanged under gravity or None)."""
+    if path is None or params["protocol"] == "gravity":
+        return params
+    return {**params, "ramp": {**params["ramp"], "path": path}}
+
+
+def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_id: str,
+                params: dict[str, Any], controller: Any = None) -> ReplayResult:  # fmt: skip
+    """One replay of ``grasp`` (a grasp-table row) from its placement, with ``controller``."""
+    pos = np.array([grasp[f"wrist_{a}"] for a in "xyz"])
+    quat = np.array([grasp[f"quat_{a}"] for a in "wxyz"])
+    joints = np.array([grasp[f"theta_{k:02d}"] for k in range(16)])
+    place_grasp(scene, data, pos, quat, joints, np.asarray(params["gravity"], dtype=np.float64))
+    load = grasp_load(params, scene, scene.model.opt.gravity.copy(), object_id,
+                      int(grasp["grasp_id"]))  # fmt: skip
+    dt = float(params["timestep"])
+    return run_replay(
+        scene.model, data, scene.layout, int(params["steps"]), int(params["chunk_steps"]),
+        max(1, round(float(params["stop_after_loss_s"]) / dt)), load, scene.object_body,
+        deep_stop(params), controller=controller,
+    )  # fmt: skip
+
+
+def closed_loop_object(
+    object_id: str,
+    object_dir: str | Path,
+    hand_dir: str | Path,
+    grasp_table: str | Path,
+    params: dict[str, Any],
+    labels: dict[str, Any],
+    policies: Sequence[Policy],
+    reflex: ReflexParams,
+    *,
+    stride: int = 1,
+    debounce: int = 1,
+    arm_s: float = 0.0,
+    oracle_lead_s: float | None = None,
+    grasp_ids: Sequence[int] | None = None,
+) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
+    """Every grasp (or ``grasp_ids``) of ``grasp_table`` under every policy. Returns one row per
+    grasp and policy (``closedloop.outcome``'s columns, the wall time) and each run's traces,
+    keyed (grasp id, policy)."""
+    scene = build_replay_scene(hand_dir, object_dir, params)
+    data = mujoco.MjData(scene.model)
+    dt = float(params["timestep"])
+    closing, upper = actuator_axes(scene, scene.model.nu)
+    lead = float(labels["horizon_s"] if oracle_lead_s is None else oracle_lead_s)
+    grasps = read_parquet(grasp_table)
+    if grasp_ids is not None:
+        grasps = grasps.filter(pl.col("grasp_id").is_in(list(grasp_ids)))
+    rows, traces = [], {}
+    for i, g in enumerate(grasps.iter_rows(named=True)):
+        gid = int(g["grasp_id"])
+        start = time.perf_counter()
+        base_run = replay_once(scene, data, g, object_id, params)
+        base = baseline_of(base_run.traces, labels, dt)
+        wall = {"none": time.perf_counter() - start}
+        runs = {"none": (base_run, None)}
+        for policy in policies:
+            if policy.kind == "none":
+                continue
+            grip = make_reflex(policy, reflex, closing, upper, dt, onset=base.onset,
+                               oracle_lead_steps=steps_of(lead, dt),
+                               arm_step=steps_of(arm_s, dt), stride=stride,
+                               debounce=debounce)  # fmt: skip
+            start = time.perf_counter()
+            run = base_run if grip is None else replay_once(scene, data, g, object_id, params,
+                                                            grip)  # fmt: skip
+            wall[policy.name] = time.perf_counter() - start
+            runs[policy.name] = (run, grip)
+        for name in ["none"] + [p.name for p in policies if p.kind != "none"]:
+            run, grip = runs[name]
+            rows.append({"object": object_id, "grasp_id": gid, "policy": name,
+                         "stop_reason": run.stop_reason, "steps": run.steps,
+                         **outcome(run.traces, grip, base, labels, dt),
+                         "wall_s": wall[name]})  # fmt: skip
+            traces[(gid, name)] = run.traces
+        done = [r for r in rows if r["grasp_id"] == gid]
+        log.info("%s grasp %d (%d/%d): baseline %s; dropped under %s (%.1f s wall)", object_id,
+                 gid, i + 1, grasps.height, "fails" if base.failing else "holds",
+                 ",".join(r["policy"] for r in done if r["dropped"]) or "none",
+                 sum(wall.values()))  # fmt: skip
+    return pl.DataFrame(rows), traces

@@ -1,0 +1,85 @@
+"""A policy's outcome on planted traces: drops, onset, lead, latency, slip distance, grip cost."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import yaml
+
+from graspstab.closedloop.outcome import baseline_of, drop_step, outcome, slip_distance
+from graspstab.replay.run import REFLEX
+
+DT = 5e-4
+LABELS = yaml.safe_load((Path(__file__).parents[1] / "config/labels/default.yaml").read_text())
+T, SLIP, LOST = 8000, 5000, 5600  # the baseline slides at 1 cm/s from SLIP, loses contact at LOST
+
+
+def traces(slip: int | None = None, lost: int | None = None, normal: float = 1.0,
+           tightened: int | None = None) -> dict[str, np.ndarray]:  # fmt: skip
+    """Planted channels: at rest with contact; sliding along x at 1 cm/s from ``slip``; no contact
+    from ``lost``; fingertip normals of ``normal`` N each, 1.5 N from ``tightened`` on (with the
+    reflex channel at 0.2 rad from there)."""
+    vel = np.zeros((T, 3), np.float32)
+    dist = np.full(T, -0.001, np.float32)
+    if slip is not None:
+        vel[slip:, 0] = 0.01
+    if lost is not None:
+        dist[lost:] = np.nan
+    force = np.full((T, 5), normal, np.float32)
+    reflex = np.zeros(T, np.float32)
+    if tightened is not None:
+        force[tightened:] = 1.5
+        reflex[tightened:] = 0.2
+    return {"velocity": vel, "min_distance": dist, "normal": force, "shear": force * 0.1,
+            REFLEX: reflex}  # fmt: skip
+
+
+def test_drop_is_the_first_long_enough_run_without_contact() -> None:
+    dist = np.zeros(1000)
+    dist[100:250] = np.nan  # 150 steps: shorter than 0.1 s (200)
+    dist[400:700] = np.nan
+    assert drop_step(dist, 200) == 400
+    assert drop_step(np.zeros(1000), 200) is None
+
+
+def test_slip_distance_runs_from_onset_to_arrest() -> None:
+    speed = np.zeros(2000)
+    speed[500:600] = 0.01
+    dist, arrest = slip_distance(speed, 500, 2000, 0.0012, 300, DT)
+    assert dist == pytest.approx(100 * 0.01 * DT) and arrest == 600
+    dist, arrest = slip_distance(np.full(2000, 0.01), 500, 1500, 0.0012, 300, DT)
+    assert dist == pytest.approx(1000 * 0.01 * DT) and arrest is None
+
+
+def test_a_saved_grasp_against_its_failing_baseline() -> None:
+    base = baseline_of(traces(SLIP, LOST), LABELS, DT)
+    assert base.usable and base.onset == SLIP and base.drop == LOST and base.end == LOST
+    none = outcome(traces(SLIP, LOST), None, base, LABELS, DT)
+    assert none["dropped"] and none["failing"] and not none["fired"] and not none["prevented"]
+    assert none["slip_mm"] == pytest.approx(600 * 0.01 * DT * 1e3) and np.isnan(none["arrest_s"])
+    # warned at 4779, tightened from 4800; the object stays put and in contact
+    saved = outcome(traces(tightened=4800), SimpleNamespace(warn_frames=[4779]), base, LABELS, DT)
+    assert saved["prevented"] and not saved["dropped"] and not saved["false_alarm"]
+    assert saved["lead_s"] == pytest.approx((SLIP - 4779) * DT)
+    assert saved["latency_s"] == pytest.approx((4800 - SLIP) * DT)  # tightened before the onset
+    assert saved["tightened_s"] == pytest.approx((T - 4800) * DT)
+    assert saved["slip_mm"] == 0 and saved["arrest_s"] == pytest.approx(SLIP * DT)
+    # 5 fingertips x 0.5 N more, while both runs hold the object: [4800, LOST)
+    assert saved["added_normal_mean_n"] == pytest.approx(2.5)
+    assert saved["added_normal_peak_n"] == pytest.approx(2.5)
+
+
+def test_false_alarms_and_worse_outcomes_on_a_holding_grasp() -> None:
+    base = baseline_of(traces(), LABELS, DT)
+    assert base.usable and base.onset is None and base.drop is None
+    alarm = outcome(traces(tightened=3000), SimpleNamespace(warn_frames=[2979]), base, LABELS, DT)
+    assert alarm["false_alarm"] and not alarm["worse"] and np.isnan(alarm["lead_s"])
+    assert np.isnan(alarm["latency_s"]) and np.isnan(alarm["slip_mm"])
+    pushed = outcome(traces(tightened=3000, lost=3500), SimpleNamespace(warn_frames=[2979]), base,
+                     LABELS, DT)  # fmt: skip
+    assert pushed["worse"] and pushed["dropped"] and pushed["drop_s"] == pytest.approx(3500 * DT)
+    # the grip cost stops where the tightened run lost the object
+    assert pushed["added_normal_mean_n"] == pytest.approx(2.5)
