@@ -6,10 +6,16 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import polars as pl
 import pytest
 import yaml
 
+from graspstab.closedloop.closed_loop import closed_loop_object, protocol_params
 from graspstab.closedloop.outcome import baseline_of, drop_step, outcome, slip_distance
+from graspstab.closedloop.policies import Policy
+from graspstab.closedloop.reflex import ReflexParams
+from graspstab.closedloop.sources import build_policies, latency_s
+from graspstab.config.compose import compose_config
 from graspstab.replay.run import REFLEX
 
 DT = 5e-4
@@ -83,3 +89,48 @@ def test_false_alarms_and_worse_outcomes_on_a_holding_grasp() -> None:
     assert pushed["worse"] and pushed["dropped"] and pushed["drop_s"] == pytest.approx(3500 * DT)
     # the grip cost stops where the tightened run lost the object
     assert pushed["added_normal_mean_n"] == pytest.approx(2.5)
+
+
+# ---------------------------------------------------------------------------------------------
+# the per-object runner on the real hand and a real object, and the policies from a run's files
+
+
+def test_closed_loop_object_runs_every_policy_on_the_same_grasp(
+    foam_brick_dir: Path, built_hand_dir: Path, tmp_path: Path
+) -> None:
+    cfg = compose_config(Path(__file__).parents[1] / "config", [])
+    params = dict(protocol_params(cfg, "reference"), steps=1200)
+    quat = np.array([0.9, 0.2, -0.3, 0.25])
+    quat /= np.linalg.norm(quat)
+    grasp = {"grasp_id": 7, "shard": 0, "wrist_x": 0.3, "wrist_y": -0.1, "wrist_z": 0.05,
+             **{f"quat_{a}": float(v) for a, v in zip("wxyz", quat, strict=True)},
+             **{f"theta_{k:02d}": 0.0 for k in range(16)}}  # fmt: skip
+    pl.DataFrame([grasp]).write_parquet(tmp_path / "grasps.parquet")
+    policies = build_policies(["none", "always", "oracle"])
+    table, traces = closed_loop_object(
+        "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "grasps.parquet", params,
+        cfg["labels"], policies, ReflexParams(amount=0.2, rate=4.0, delay_s=0.01),
+    )  # fmt: skip
+    assert table["policy"].to_list() == ["none", "always", "oracle"]
+    rows = {r["policy"]: r for r in table.iter_rows(named=True)}
+    # far from the hand the object falls at once: every policy drops it, none prevents a drop
+    assert all(r["dropped"] and not r["prevented"] for r in rows.values())
+    assert not rows["none"]["fired"] and rows["always"]["fired"]
+    assert rows["always"]["tighten_s"] == 0
+    assert rows["always"]["peak_offset_rad"] == pytest.approx(0.2)
+    # the grip reached 0.2 rad at 4 rad/s after 50 ms (100 steps) and stayed there
+    offset = traces[(7, "always")][REFLEX]
+    np.testing.assert_allclose(offset[:100], 4.0 * DT * np.arange(1, 101), rtol=1e-5)
+    assert np.all(offset[100:] == pytest.approx(0.2))
+    assert REFLEX not in traces[(7, "none")]  # the open loop records no reflex channel
+    with pytest.raises(ValueError, match="kind 'sometimes'"):
+        Policy("x", "sometimes")
+
+
+def test_latency_is_the_latency_studys_median_of_the_family_and_window(tmp_path: Path) -> None:
+    pl.DataFrame({"study": ["baseline", "sweep", "sweep"], "family": ["lstm", "lstm", "gru"],
+                  "window_steps": [400, 20, 20], "median_ms": [2.0, 0.4, 0.9]}
+                 ).write_parquet(tmp_path / "latency.parquet")  # fmt: skip
+    assert latency_s(tmp_path / "latency.parquet", "lstm", 20) == pytest.approx(0.4e-3)
+    with pytest.raises(ValueError, match="no latency row for family 'cnn' at 20 steps"):
+        latency_s(tmp_path / "latency.parquet", "cnn", 20)

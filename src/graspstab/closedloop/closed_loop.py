@@ -32,6 +32,24 @@ from graspstab.replay.scene import build_replay_scene, place_grasp
 log = logging.getLogger("graspstab.closedloop")
 
 
+def protocol_params(config: dict[str, Any], protocol: str) -> dict[str, Any]:
+    """The replay params of ``protocol`` (``reference``: the run's replay group; ``creep_free``:
+    it under the load ramp with creep_free's contact model, squeeze and length, as the
+    creep-free benchmark replays), with the closed loop's ramp path."""
+    replay = config["replay"]
+    if protocol == "reference":
+        return {k: v for k, v in replay.items() if k != "ramp"} if replay["protocol"] == \
+            "gravity" else dict(replay)  # fmt: skip
+    if protocol != "creep_free":
+        raise ValueError(f"closed_loop.protocols: unknown protocol {protocol!r}; valid: "
+                         "reference, creep_free")  # fmt: skip
+    cf = config["creep_free"]
+    params = {**replay, "protocol": "ramp", "contact": cf["contact"],
+              "squeeze": {**replay["squeeze"], "angle": cf["squeeze"]},
+              "steps": round(cf["seconds"] / replay["timestep"])}  # fmt: skip
+    return with_ramp_path(params, config["closed_loop"]["ramp_path"])
+
+
 def with_ramp_path(params: dict[str, Any], path: str | None) -> dict[str, Any]:
     """The replay params with the load ramp's path replaced (unchanged under gravity or None)."""
     if path is None or params["protocol"] == "gravity":

@@ -1,0 +1,67 @@
+"""The closed loop's policies built from a run's files: each family's model, the pick, the proxy.
+
+Every monitor keeps its validation-selected threshold (the learning stage's for a model, the
+proxy's own on the validation windows) and carries its measured per-score latency from the
+latency study (4.5: batch-1 CPU forward pass, median), which the reflex adds to its delay. The
+proxy's latency is taken as zero: it is one division per fingertip.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from graspstab.closedloop.policies import Policy
+from graspstab.common.io import read_parquet
+from graspstab.monitor.checkpoint import read_trained
+from graspstab.monitor.evaluate_monitor import proxy_scorer
+from graspstab.monitor.export import load_onnx
+from graspstab.monitor.scoring import TorchScorer
+
+FIXED = {"none": "none", "always": "always", "oracle": "oracle"}
+
+
+def latency_s(table: str | Path, family: str, window_steps: int) -> float:
+    """The median batch-1 latency [s] of ``family`` at ``window_steps`` in the latency study's
+    table (any study's row with that family and window), or an error naming what is missing."""
+    rows = read_parquet(table).filter((pl.col("family") == family)
+                                      & (pl.col("window_steps") == window_steps))  # fmt: skip
+    if rows.height == 0:
+        raise ValueError(f"{table}: no latency row for family {family!r} at {window_steps} "
+                         "steps; closed_loop.window_s must be a sweep window")  # fmt: skip
+    return float(rows["median_ms"].median()) / 1e3
+
+
+def build_policies(
+    names: list[str],
+    *,
+    checkpoints: Mapping[str, tuple[str | Path, str | Path]] | None = None,
+    pick_onnx: str | Path | None = None,
+    proxy_dataset: str | Path | None = None,
+    threshold: Mapping[str, Any] | None = None,
+    latency_table: str | Path | None = None,
+) -> list[Policy]:
+    """The policies ``names`` (``closed_loop.policies``): fixed ones need nothing; a family needs
+    its (checkpoint, metrics.json) in ``checkpoints``; ``pick`` its exported ONNX file; ``proxy``
+    the dataset whose validation windows set its threshold by the train group's ``threshold``
+    rule. Models' latencies come from ``latency_table``."""
+    out = []
+    for name in names:
+        if name in FIXED:
+            out.append(Policy(name, FIXED[name]))
+        elif name == "proxy":
+            scorer, _ = proxy_scorer(proxy_dataset, threshold)
+            out.append(Policy(name, "monitor", scorer, scorer.constants.threshold, 0.0))
+        elif name == "pick":
+            scorer = load_onnx(pick_onnx)
+            c = scorer.constants
+            out.append(Policy(name, "monitor", scorer, c.threshold,
+                              latency_s(latency_table, c.family, c.window_steps)))  # fmt: skip
+        else:
+            model, constants = read_trained(*checkpoints[name])
+            out.append(Policy(name, "monitor", TorchScorer(model, constants), constants.threshold,
+                              latency_s(latency_table, name, constants.window_steps)))  # fmt: skip
+    return out
