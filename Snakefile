@@ -41,6 +41,13 @@ if config["crossval"]["enabled"]:
     include: "workflow/rules/crossval.smk"
 
 
+# The closed loop: a grip reflex driven by the monitor in the replay (docs/extensions.md "Closed
+# loop"), when enabled.
+if config["closed_loop"]["enabled"]:
+
+    include: "workflow/rules/closed_loop.smk"
+
+
 include: "workflow/rules/report.smk"
 
 

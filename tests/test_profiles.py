@@ -172,3 +172,32 @@ def test_wide_profile_tests_every_object_once_per_family_and_protocol(bare_env, 
     assert tested == sorted(cfg["objects"]["items"])
     jobs = [j for j in listed_jobs(proc.stdout) if j["rule"] == "train_fold_model"]
     assert {int(j["wildcards"]["fold"]) for j in jobs} == set(range(cv["k"]))
+
+
+@pytest.mark.workflow
+def test_closed_loop_runs_every_test_object_per_protocol_on_that_protocols_monitors(
+    bare_env, tmp_path
+):
+    """closed_loop.enabled: one job per protocol x test object, whose monitors are that
+    protocol's first-seed sweep models at closed_loop.window_s (the pick: the reference's only);
+    naming creep_free without the benchmark is an error that says how to fix it."""
+    from graspstab.config import load_config
+
+    on = ["closed_loop={enabled: true}", "creep_free={enabled: true}"]
+    cfg = load_config(CONFIG_DIR, SCHEMA, {}, check_files=False)
+    proc = _snakemake(tmp_path, bare_env, "--dry-run", "closed_loop", "--config", *on)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    jobs = [j for j in listed_jobs(proc.stdout) if j["rule"] == "closed_loop_object"]
+    tests = sorted(o for o, v in cfg["objects"]["items"].items() if v["split"] == "test")
+    assert sorted((j["wildcards"]["protocol"], j["wildcards"]["object"]) for j in jobs) == sorted(
+        (p, o) for p in ("creep_free", "reference") for o in tests
+    )
+    for j in jobs:
+        sweep = [p for p in j["input"] if "/train/sweep/" in p]
+        root = "results/creep_free/" if j["wildcards"]["protocol"] == "creep_free" else "results/"
+        assert len(sweep) == 6 and all(p.startswith(root) and "/w10ms/seed42/" in p for p in sweep)
+        pick = any("monitor/export/pick" in p for p in j["input"])
+        assert pick == (j["wildcards"]["protocol"] == "reference")
+    proc = _snakemake(tmp_path, bare_env, "--dry-run", "closed_loop", "--config", on[0])
+    assert proc.returncode != 0
+    assert "set creep_free.enabled=true, or closed_loop.protocols=[reference]" in proc.stdout

@@ -23,7 +23,7 @@ import polars as pl
 from graspstab.closedloop.outcome import baseline_of, outcome
 from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
 from graspstab.closedloop.reflex import ReflexParams
-from graspstab.common.io import read_parquet
+from graspstab.common.io import read_parquet, write_parquet
 from graspstab.labels.interval import steps_of
 from graspstab.replay.replay_grasps import deep_stop, grasp_load
 from graspstab.replay.run import ReplayResult, run_replay
@@ -78,7 +78,7 @@ def closed_loop_object(
     object_id: str,
     object_dir: str | Path,
     hand_dir: str | Path,
-    grasp_table: str | Path,
+    grasp_table: str | Path | Sequence[str | Path],
     params: dict[str, Any],
     labels: dict[str, Any],
     policies: Sequence[Policy],
@@ -90,7 +90,8 @@ def closed_loop_object(
     oracle_lead_s: float | None = None,
     grasp_ids: Sequence[int] | None = None,
 ) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
-    """Every grasp (or ``grasp_ids``) of ``grasp_table`` under every policy. Returns one row per
+    """Every grasp (or ``grasp_ids``) of ``grasp_table`` (one shard table or several) under
+    every policy. Returns one row per
     grasp and policy (``closedloop.outcome``'s columns, the wall time) and each run's traces,
     keyed (grasp id, policy)."""
     scene = build_replay_scene(hand_dir, object_dir, params)
@@ -98,7 +99,8 @@ def closed_loop_object(
     dt = float(params["timestep"])
     closing, upper = actuator_axes(scene, scene.model.nu)
     lead = float(labels["horizon_s"] if oracle_lead_s is None else oracle_lead_s)
-    grasps = read_parquet(grasp_table)
+    tables = [grasp_table] if isinstance(grasp_table, (str, Path)) else list(grasp_table)
+    grasps = pl.concat([read_parquet(t) for t in tables], how="diagonal_relaxed")
     if grasp_ids is not None:
         grasps = grasps.filter(pl.col("grasp_id").is_in(list(grasp_ids)))
     rows, traces = [], {}
@@ -134,3 +136,12 @@ def closed_loop_object(
                  ",".join(r["policy"] for r in done if r["dropped"]) or "none",
                  sum(wall.values()))  # fmt: skip
     return pl.DataFrame(rows), traces
+
+
+def write_closed_loop(
+    path: str | Path,
+    table: pl.DataFrame,
+    meta: dict[str, Any],
+) -> None:
+    """The per-object table (one row per grasp and policy), its settings in the metadata."""
+    write_parquet(path, table, metadata={**meta, "mujoco_version": mujoco.__version__})

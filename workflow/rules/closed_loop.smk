@@ -1,0 +1,87 @@
+# Closed loop (our extension, docs/extensions.md "Closed loop"): every test object's grasps
+# replayed under each policy (no reflex, always, oracle, the proxy, the learned pick, each family)
+# with the grip reflex in the loop, per protocol. Each family's monitor is its first-seed sweep
+# model at closed_loop.window_s under that protocol, with its validation-selected threshold; the
+# proxy's threshold comes from the same dataset's validation windows; the pick is the reference
+# protocol's export (monitor.smk) and runs under the reference protocol only.
+
+from graspstab.closedloop.closed_loop import protocol_params
+
+CL = config["closed_loop"]
+CL_MS = ms_of(CL["window_s"])
+CL_ROOTS = {"reference": "results", "creep_free": CREEP_FREE}
+if "creep_free" in CL["protocols"] and not config["creep_free"]["enabled"]:
+    raise ValueError(
+        "closed_loop.protocols names creep_free, whose monitors the creep-free benchmark trains: "
+        "set creep_free.enabled=true, or closed_loop.protocols=[reference]"
+    )
+
+
+def closed_loop_policies(protocol):
+    """The policies run under ``protocol`` (the pick only where its export was trained)."""
+    return [p for p in CL["policies"] if p != "pick" or protocol == "reference"]
+
+
+def closed_loop_inputs(wildcards):
+    """A protocol's monitors: checkpoints and metrics, the pick's export, the proxy's dataset
+    and the latency table."""
+    root, names = CL_ROOTS[wildcards.protocol], closed_loop_policies(wildcards.protocol)
+    out = {"latency": rules.measure_latency.output[0]}
+    for m in (m for m in MODELS if m in names):
+        out[f"checkpoint_{m}"] = sweep_first_seed(m, CL_MS, "model.pt", root)
+        out[f"metrics_{m}"] = sweep_first_seed(m, CL_MS, "metrics.json", root)
+    if "pick" in names:
+        out["pick"] = rules.export_pick.output.onnx
+    if "proxy" in names:
+        out.update(dataset_inputs(f"{root}/datasets/sweep/w{CL_MS}ms"))
+    return out
+
+
+def closed_loop_tables():
+    """Every per-object closed-loop table: protocol x test object."""
+    tests = [o for o, s in object_splits().items() if s == "test"]
+    return expand("results/closed_loop/{protocol}/{object}.parquet",
+                  protocol=CL["protocols"], object=tests)  # fmt: skip
+
+
+wildcard_constraints:
+    protocol="reference|creep_free",
+
+
+rule closed_loop_object:
+    input:
+        unpack(closed_loop_inputs),
+        grasps=shard_tables,
+        object_xml="results/objects/{object}/object.xml",
+        hand=rules.build_hand.output,
+    output:
+        "results/closed_loop/{protocol}/{object}.parquet",
+    params:
+        replay=lambda wc: protocol_params(config, wc.protocol),
+        labels=config["labels"],
+        closed_loop=CL,
+        policies=lambda wc: closed_loop_policies(wc.protocol),
+        monitor=config["monitor"],
+        threshold=config["train"]["threshold"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=240,
+    log:
+        "results/logs/closed_loop_object/{protocol}_{object}.log",
+    benchmark:
+        "results/benchmarks/closed_loop_object/{protocol}_{object}.tsv"
+    script:
+        "../scripts/closed_loop_object.py"
+
+
+localrules:
+    closed_loop,
+
+
+rule closed_loop:
+    """Target: every closed-loop table (snakemake --cores 2 closed_loop --config ...)."""
+    input:
+        closed_loop_tables(),

@@ -1,0 +1,48 @@
+"""Snakemake wrapper: one test object's grasps under every closed-loop policy (closedloop)."""
+
+from pathlib import Path
+
+import torch
+
+from graspstab.closedloop.closed_loop import closed_loop_object, write_closed_loop
+from graspstab.closedloop.reflex import ReflexParams
+from graspstab.closedloop.sources import build_policies
+from graspstab.common.cache import run_cached
+from graspstab.common.logs import setup_logging
+from graspstab.common.provenance import provenance
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+
+
+def compute() -> None:
+    setup_logging(sm.log[0])
+    torch.set_num_threads(1)
+    cl = dict(sm.params.closed_loop)
+    inputs = dict(sm.input.items())
+    names = list(sm.params.policies)
+    checkpoints = {m: (inputs[f"checkpoint_{m}"], inputs[f"metrics_{m}"])
+                   for m in ("cnn", "gru", "lstm") if m in names}  # fmt: skip
+    policies = build_policies(
+        names, checkpoints=checkpoints, pick_onnx=inputs.get("pick"),
+        proxy_dataset=Path(inputs["index"]).parent if "index" in inputs else None,
+        threshold=dict(sm.params.threshold), latency_table=inputs["latency"],
+    )  # fmt: skip
+    monitor = dict(sm.params.monitor)
+    table, _ = closed_loop_object(
+        sm.wildcards.object, Path(sm.input.object_xml).parent, Path(sm.input.hand[0]).parent,
+        list(sm.input.grasps), dict(sm.params.replay), dict(sm.params.labels), policies,
+        ReflexParams(**cl["reflex"]), stride=int(monitor["stride"]),
+        debounce=int(monitor["debounce"]), arm_s=float(cl["arm_s"]),
+        oracle_lead_s=cl["oracle_lead_s"],
+    )  # fmt: skip
+    thresholds = {p.name: p.threshold for p in policies if p.threshold is not None}
+    latencies = {p.name: p.latency_s for p in policies if p.kind == "monitor"}
+    write_closed_loop(sm.output[0], table, {
+        "object_id": sm.wildcards.object, "protocol": sm.wildcards.protocol,
+        "policies": names, "thresholds": thresholds, "latency_s": latencies,
+        "provenance": provenance("closedloop", {**cl, "replay": dict(sm.params.replay)}),
+    })  # fmt: skip
+
+
+# Content-addressed: restored from the cache when the same job ran before (docs/design.md).
+run_cached(sm, ("replay", "labels", "learning", "monitor", "closedloop"), compute)
