@@ -232,7 +232,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     ap.add_argument("--results", type=Path, required=True, help="the finished run's results/")
     ap.add_argument("--run-config", nargs="*", default=[], metavar="KEY=VALUE",
                     help="the --config entries the run used (they decide its DAG)")  # fmt: skip
-    ap.add_argument("--target", default="results/report.html")
+    ap.add_argument("--target", nargs="+", default=["results/report.html"],
+                    help="the run's targets (several: the jobs any of them needs)")
     ap.add_argument("--nodes", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
     ap.add_argument("--cores", type=int, default=2, help="cores per node")
     ap.add_argument("--overhead", type=float, nargs="+", default=[0.0, 60.0],
@@ -242,7 +243,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = ap.parse_args(argv)
     workdir = args.results.resolve().parent
     text = snakemake(["--dry-run", "--cores", "1", *config_args(args.run_config), "--",
-                      args.target])  # fmt: skip
+                      *args.target])  # fmt: skip
     jobs = parse_jobs(text)
     if not jobs:
         raise SystemExit("the dry run listed no jobs: check --run-config and --target")
