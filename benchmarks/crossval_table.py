@@ -74,9 +74,10 @@ def main() -> None:
             print("|---|---|---|---:|---|---|---:|---|")
             for r in s["variants"]:
                 d = f"{100 * r['mean_diff']:+.1f} [{100 * r['lo']:+.1f}, {100 * r['hi']:+.1f}]"
+                p = "-" if r["sign_p"] is None else f"{r['sign_p']:.3g}"  # all ties: no test
                 print(
                     f"| {r['scorer']} | {r['against']} | {r['metric'].upper()} | {r['objects']} "
-                    f"| {d} | {r['wins']} / {r['losses']} | {r['sign_p']:.3g} | {r['verdict']} |"
+                    f"| {d} | {r['wins']} / {r['losses']} | {p} | {r['verdict']} |"
                 )
             print()
         if s.get("thresholds"):

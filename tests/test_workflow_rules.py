@@ -27,7 +27,7 @@ def test_every_job_rule_declares_threads_resources_log_and_benchmark():
     assert len(blocks) > 20
     runs = {n: b for n, b in blocks.items() if re.search(r"^\s+(script|shell|run):", b, re.M)}
     targets = set(blocks) - set(runs)
-    assert targets <= {"all", "studies", "closed_loop"}, targets  # only aggregate targets run nothing
+    assert targets <= {"all", "studies", "closed_loop"}, targets  # aggregate targets run nothing
     missing = {}
     for name, body in runs.items():
         lacks = [k for k in ("threads:", "resources:", "mem_mb=", "runtime=", "log:",
