@@ -16,6 +16,7 @@ from graspstab.closedloop.policies import Policy
 from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies, latency_s
 from graspstab.config.compose import compose_config
+from graspstab.replay.protocols import creep_free_replay, replay_params
 from graspstab.replay.run import REFLEX
 
 DT = 5e-4
@@ -110,6 +111,7 @@ def test_closed_loop_object_runs_every_policy_on_the_same_grasp(
     table, traces = closed_loop_object(
         "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "grasps.parquet", params,
         cfg["labels"], policies, ReflexParams(amount=0.2, rate=4.0, delay_s=0.01),
+        keep_traces=True,
     )  # fmt: skip
     assert table["policy"].to_list() == ["none", "always", "oracle"]
     rows = {r["policy"]: r for r in table.iter_rows(named=True)}
@@ -134,3 +136,17 @@ def test_latency_is_the_latency_studys_median_of_the_family_and_window(tmp_path:
     assert latency_s(tmp_path / "latency.parquet", "lstm", 20) == pytest.approx(0.4e-3)
     with pytest.raises(ValueError, match="no latency row for family 'cnn' at 20 steps"):
         latency_s(tmp_path / "latency.parquet", "cnn", 20)
+
+
+def test_protocol_params_are_the_replay_stages_but_for_the_closed_loops_ramp_path() -> None:
+    cfg = compose_config(Path(__file__).parents[1] / "config", [])
+    assert protocol_params(cfg, "reference") == replay_params(cfg["replay"])
+    assert "ramp" not in protocol_params(cfg, "reference")  # gravity: the ramp does not count
+    bench, loop = creep_free_replay(cfg), protocol_params(cfg, "creep_free")
+    assert loop["ramp"] == {**bench["ramp"], "path": cfg["closed_loop"]["ramp_path"]}
+    assert {k: v for k, v in loop.items() if k != "ramp"} == {
+        k: v for k, v in bench.items() if k != "ramp"
+    }
+    assert loop["protocol"] == "ramp" and loop["contact"] == cfg["creep_free"]["contact"]
+    with pytest.raises(ValueError, match="unknown protocol 'slip'"):
+        protocol_params(cfg, "slip")

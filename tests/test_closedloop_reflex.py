@@ -6,6 +6,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from box_scene import two_finger_box
 
 from graspstab.closedloop.reflex import GripReflex, ReflexParams, delay_steps
 from graspstab.monitor.constants import MonitorConstants
@@ -151,31 +152,7 @@ def test_fixed_schedule_and_limits() -> None:
 # physics: a box between two position-servoed fingertips, loaded by a slowly rising force
 
 KP, MU = 1000.0, 1.0
-BOX = f"""
-<mujoco>
-  <option timestep="{DT}" cone="elliptic" impratio="10" gravity="0 0 0"/>
-  <worldbody>
-    <body name="hand">
-      <body name="tip_a" pos="-0.035 0 0">
-        <joint name="slide_a" type="slide" axis="1 0 0" damping="5"/>
-        <geom type="box" size="0.01 0.015 0.015" mass="0.05" friction="{MU} 0.005 0.0001"/>
-      </body>
-      <body name="tip_b" pos="0.035 0 0">
-        <joint name="slide_b" type="slide" axis="-1 0 0" damping="5"/>
-        <geom type="box" size="0.01 0.015 0.015" mass="0.05" friction="{MU} 0.005 0.0001"/>
-      </body>
-    </body>
-    <body name="object">
-      <freejoint/>
-      <geom type="box" size="0.02 0.02 0.02" mass="0.1" friction="{MU} 0.005 0.0001"/>
-    </body>
-  </worldbody>
-  <actuator>
-    <position joint="slide_a" kp="{KP}" forcerange="-100 100"/>
-    <position joint="slide_b" kp="{KP}" forcerange="-100 100"/>
-  </actuator>
-</mujoco>
-"""
+BOX = two_finger_box(0.1, 0.02, 100, kp=KP, mu=MU, dt=DT, palm=False)
 # each fingertip's face meets the box 5 mm in; the targets sit 2 mm past it: 2 N a side
 CONTACT, PRESS, EXTRA = 0.005, 0.002, 0.002
 

@@ -5,38 +5,14 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from box_scene import two_finger_box
 
 from graspstab.replay.replay_grasps import summarise_replay
 from graspstab.replay.run import run_replay
 from graspstab.replay.sensors import add_replay_sensors, features, sensor_layout
 
 MASS, HALF, SQUEEZE, G = 0.2, 0.02, 5.0, 9.81
-SCENE = f"""
-<mujoco>
-  <option timestep="0.0005" cone="elliptic" impratio="10" gravity="0 0 0"/>
-  <worldbody>
-    <body name="hand">
-      <body name="tip_a" pos="-0.035 0 0">
-        <joint name="slide_a" type="slide" axis="1 0 0" damping="5"/>
-        <geom type="box" size="0.01 0.015 0.015" mass="0.05" friction="1 0.005 0.0001"/>
-      </body>
-      <body name="tip_b" pos="0.035 0 0">
-        <joint name="slide_b" type="slide" axis="-1 0 0" damping="5"/>
-        <geom type="box" size="0.01 0.015 0.015" mass="0.05" friction="1 0.005 0.0001"/>
-      </body>
-      <body name="palm" pos="0 0.1 0.05"><geom type="box" size="0.01 0.01 0.01"/></body>
-    </body>
-    <body name="object">
-      <freejoint/>
-      <geom type="box" size="{HALF} {HALF} {HALF}" mass="{MASS}" friction="1 0.005 0.0001"/>
-    </body>
-  </worldbody>
-  <actuator>
-    <position joint="slide_a" kp="1000" forcerange="-{SQUEEZE} {SQUEEZE}"/>
-    <position joint="slide_b" kp="1000" forcerange="-{SQUEEZE} {SQUEEZE}"/>
-  </actuator>
-</mujoco>
-"""
+SCENE = two_finger_box(MASS, HALF, SQUEEZE)
 TIPS = {"a": "tip_a", "b": "tip_b"}
 
 

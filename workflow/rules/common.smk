@@ -5,6 +5,8 @@ from pathlib import Path
 
 from graspstab.common.units import ms_of
 from graspstab.learning.splits import sample_assignments
+from graspstab.replay import protocols
+from graspstab.replay.protocols import replay_params
 from graspstab.sensing.conditions import training_label
 
 from graspstab.config import ConfigError, creep_free_seeds, load_config, shards_of
@@ -191,14 +193,6 @@ def dataset_params(window_s):
     }
 
 
-def replay_params(replay):
-    """What a replay depends on: the replay group, without the load ramp's settings under the
-    gravity protocol (tuning the ramp must not rerun the gravity replays)."""
-    if replay["protocol"] == "gravity":
-        return {k: v for k, v in replay.items() if k != "ramp"}
-    return replay
-
-
 # The creep-free benchmark (creep_free.smk).
 
 CREEP_FREE = "results/creep_free"
@@ -207,16 +201,8 @@ CREEP_FREE_ARTEFACTS = {}
 
 
 def creep_free_replay():
-    """The creep-free benchmark's replay params: the run's replay group under the load ramp
-    (replay.ramp) with creep_free's contact model, squeeze and replay length."""
-    cf, replay = config["creep_free"], config["replay"]
-    return replay_params({
-        **replay,
-        "protocol": "ramp",
-        "contact": cf["contact"],
-        "squeeze": {**replay["squeeze"], "angle": cf["squeeze"]},
-        "steps": round(cf["seconds"] / replay["timestep"]),
-    })
+    """The creep-free benchmark's replay params (replay.protocols.creep_free_replay)."""
+    return protocols.creep_free_replay(config)
 
 
 def creep_free_sweep_ms():

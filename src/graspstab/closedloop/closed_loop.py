@@ -25,6 +25,7 @@ from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
 from graspstab.closedloop.reflex import ReflexParams
 from graspstab.common.io import read_parquet, write_parquet
 from graspstab.labels.interval import steps_of
+from graspstab.replay.protocols import creep_free_replay, replay_params
 from graspstab.replay.replay_grasps import deep_stop, grasp_load
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp
@@ -36,18 +37,12 @@ def protocol_params(config: dict[str, Any], protocol: str) -> dict[str, Any]:
     """The replay params of ``protocol`` (``reference``: the run's replay group; ``creep_free``:
     it under the load ramp with creep_free's contact model, squeeze and length, as the
     creep-free benchmark replays), with the closed loop's ramp path."""
-    replay = config["replay"]
     if protocol == "reference":
-        return {k: v for k, v in replay.items() if k != "ramp"} if replay["protocol"] == \
-            "gravity" else dict(replay)  # fmt: skip
+        return replay_params(config["replay"])
     if protocol != "creep_free":
         raise ValueError(f"closed_loop.protocols: unknown protocol {protocol!r}; valid: "
                          "reference, creep_free")  # fmt: skip
-    cf = config["creep_free"]
-    params = {**replay, "protocol": "ramp", "contact": cf["contact"],
-              "squeeze": {**replay["squeeze"], "angle": cf["squeeze"]},
-              "steps": round(cf["seconds"] / replay["timestep"])}  # fmt: skip
-    return with_ramp_path(params, config["closed_loop"]["ramp_path"])
+    return with_ramp_path(creep_free_replay(config), config["closed_loop"]["ramp_path"])
 
 
 def with_ramp_path(params: dict[str, Any], path: str | None) -> dict[str, Any]:
@@ -89,11 +84,13 @@ def closed_loop_object(
     arm_s: float = 0.0,
     oracle_lead_s: float | None = None,
     grasp_ids: Sequence[int] | None = None,
+    keep_traces: bool = False,
 ) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
     """Every grasp (or ``grasp_ids``) of ``grasp_table`` (one shard table or several) under
-    every policy. Returns one row per
-    grasp and policy (``closedloop.outcome``'s columns, the wall time) and each run's traces,
-    keyed (grasp id, policy)."""
+    every policy. Returns one row per grasp and policy (``closedloop.outcome``'s columns, the
+    wall time) and, with ``keep_traces``, each run's traces keyed (grasp id, policy); without it
+    the traces are dropped after each grasp (an object's runs would otherwise all stay in
+    memory)."""
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
     dt = float(params["timestep"])
@@ -129,7 +126,8 @@ def closed_loop_object(
                          "stop_reason": run.stop_reason, "steps": run.steps,
                          **outcome(run.traces, grip, base, labels, dt),
                          "wall_s": wall[name]})  # fmt: skip
-            traces[(gid, name)] = run.traces
+            if keep_traces:
+                traces[(gid, name)] = run.traces
         done = [r for r in rows if r["grasp_id"] == gid]
         log.info("%s grasp %d (%d/%d): baseline %s; dropped under %s (%.1f s wall)", object_id,
                  gid, i + 1, grasps.height, "fails" if base.failing else "holds",
