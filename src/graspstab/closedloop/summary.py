@@ -1,0 +1,199 @@
+"""A protocol's closed-loop tables summed up per policy, with intervals by bootstrap over grasps:
+the figures a robot user asks for (how many drops a warning saves, at what false alarms and
+force), the paired comparisons that decide whether the learned monitor saves more grasps than
+the friction-ratio proxy, and every grasp where a policy does worse than no reflex.
+
+Every figure is over the *usable* grasps (those whose no-reflex run has a verdict,
+``closedloop.outcome.Baseline.usable``). Each bootstrap resample draws the grasps with
+replacement once and scores every policy on that same draw, so policies are compared paired.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+# rate name: (the row's flag, the grasps it is a share of); "all": every usable grasp
+RATES: dict[str, tuple[str, str]] = {
+    "drop_rate": ("dropped", "all"),
+    "prevented_share": ("prevented", "baseline_dropped"),  # of the no-reflex run's drops
+    "worse_share": ("worse", "baseline_held"),  # of the grasps the no-reflex run holds
+    "false_alarm_rate": ("false_alarm", "holding"),  # of the grasps that hold without a reflex
+    "fired_rate": ("fired", "all"),
+}
+# mean name: the row's column, averaged over the grasps where it is defined (finite)
+MEANS: dict[str, str] = {
+    "lead_s": "lead_s",
+    "latency_s": "latency_s",
+    "slip_mm": "slip_mm",
+    "added_normal_mean_n": "added_normal_mean_n",
+    "added_normal_peak_n": "added_normal_peak_n",
+    "tightened_s": "tightened_s",
+}
+# the paired comparisons a summary states: (policy, against, the figure compared)
+COMPARED = ("drop_rate", "prevented_share", "false_alarm_rate")
+
+
+def _aligned(table: pl.DataFrame, policies: Sequence[str]) -> dict[str, pl.DataFrame]:
+    """Each policy's rows over the same usable grasps, in one order."""
+    usable = table.filter(pl.col("usable"))
+    keys = (
+        usable.filter(pl.col("policy") == policies[0])
+        .select("object", "grasp_id")
+        .sort("object", "grasp_id")
+    )
+    out = {}
+    for p in policies:
+        rows = keys.join(
+            usable.filter(pl.col("policy") == p),
+            on=["object", "grasp_id"],
+            how="left",
+            maintain_order="left",
+        )
+        if rows["policy"].null_count():
+            missing = rows.filter(pl.col("policy").is_null()).head(1).row(0, named=True)
+            raise ValueError(
+                f"closed-loop tables: policy {p!r} has no row for object "
+                f"{missing['object']!r} grasp {missing['grasp_id']} (every policy "
+                "runs every grasp; rerun that object's closed_loop_object job)"
+            )
+        out[p] = rows
+    return out
+
+
+def _masks(rows: pl.DataFrame) -> dict[str, np.ndarray]:
+    """The grasp subsets a rate is a share of (from the no-reflex verdicts every row carries)."""
+    dropped = rows["baseline_dropped"].to_numpy().astype(bool)
+    failing = rows["failing"].to_numpy().astype(bool)
+    return {
+        "all": np.ones(len(rows), bool),
+        "baseline_dropped": dropped,
+        "baseline_held": ~dropped,
+        "holding": ~failing,
+    }
+
+
+def _figures(rows: pl.DataFrame, weights: np.ndarray) -> dict[str, np.ndarray]:
+    """Every rate and mean under each row of ``weights`` (resamples x grasps; counts per grasp)."""
+    masks = _masks(rows)
+    out = {}
+    for name, (flag, subset) in RATES.items():
+        x = rows[flag].to_numpy().astype(np.float64)
+        m = masks[subset].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[name] = (weights @ (x * m)) / (weights @ m)
+    for name, col in MEANS.items():
+        x = rows[col].to_numpy().astype(np.float64)
+        ok = np.isfinite(x)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[name] = (weights @ np.where(ok, x, 0.0)) / (weights @ ok.astype(np.float64))
+    return out
+
+
+def _interval(draws: np.ndarray, level: float) -> tuple[float, float]:
+    d = draws[np.isfinite(draws)]
+    if not d.size:
+        return float("nan"), float("nan")
+    alpha = (1 - level) / 2
+    lo, hi = np.quantile(d, [alpha, 1 - alpha])
+    return float(lo), float(hi)
+
+
+def bootstrap_weights(n: int, resamples: int, seed: int) -> np.ndarray:
+    """(resamples, n) counts of each grasp in each resample (grasps drawn with replacement)."""
+    rng = np.random.default_rng(seed)
+    draws = rng.integers(0, n, (resamples, n))
+    return np.stack([np.bincount(d, minlength=n) for d in draws]).astype(np.float64)
+
+
+def summarise_policies(
+    table: pl.DataFrame,
+    policies: Sequence[str],
+    *,
+    resamples: int = 1000,
+    level: float = 0.95,
+    seed: int = 0,
+    compare: Sequence[tuple[str, str]] = (),
+) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """One row per policy (counts; every figure with its ``_lo``/``_hi`` bootstrap interval) and
+    one row per comparison in ``compare`` ((policy, against): each figure of ``COMPARED`` as
+    policy minus against, paired over the same grasps, with its interval and verdict)."""
+    rows = _aligned(table, policies)
+    n = rows[policies[0]].height
+    if n == 0:
+        raise ValueError("closed-loop tables: no usable grasp (no no-reflex run has a verdict)")
+    point = np.ones((1, n))
+    weights = bootstrap_weights(n, resamples, seed)
+    figures = {p: (_figures(r, point), _figures(r, weights)) for p, r in rows.items()}
+    out = []
+    for p in policies:
+        r, (est, draws) = rows[p], figures[p]
+        masks = _masks(r)
+        row: dict[str, Any] = {
+            "policy": p,
+            "grasps": n,
+            "failing": int((~masks["holding"]).sum()),
+            "baseline_drops": int(masks["baseline_dropped"].sum()),
+            "drops": int(r["dropped"].sum()),
+            "prevented": int(r["prevented"].sum()),
+            "worse": int(r["worse"].sum()),
+            "false_alarms": int(r["false_alarm"].sum()),
+            "fired": int(r["fired"].sum()),
+        }
+        for name in (*RATES, *MEANS):
+            lo, hi = _interval(draws[name], level)
+            row[name], row[f"{name}_lo"], row[f"{name}_hi"] = float(est[name][0]), lo, hi
+        out.append(row)
+    pairs = []
+    for a, b in compare:
+        if a not in figures or b not in figures:
+            continue
+        for name in COMPARED:
+            diff = figures[a][0][name][0] - figures[b][0][name][0]
+            lo, hi = _interval(figures[a][1][name] - figures[b][1][name], level)
+            verdict = (
+                ("higher" if lo > 0 else "lower" if hi < 0 else "not resolved")
+                if np.isfinite(lo)
+                else "undefined"
+            )
+            pairs.append(
+                {
+                    "policy": a,
+                    "against": b,
+                    "figure": name,
+                    "diff": float(diff),
+                    "lo": lo,
+                    "hi": hi,
+                    "verdict": verdict,
+                }
+            )
+    schema = {
+        "policy": pl.String,
+        "against": pl.String,
+        "figure": pl.String,
+        "diff": pl.Float64,
+        "lo": pl.Float64,
+        "hi": pl.Float64,
+        "verdict": pl.String,
+    }
+    return pl.DataFrame(out), pl.DataFrame(pairs, schema=schema)
+
+
+def worse_grasps(table: pl.DataFrame) -> pl.DataFrame:
+    """Every (grasp, policy) where the policy drops a grasp the no-reflex run holds."""
+    cols = ["object", "grasp_id", "policy", "drop_s", "tighten_s", "warn_s", "peak_offset_rad"]
+    return (
+        table.filter(pl.col("usable") & pl.col("worse"))
+        .select(cols)
+        .sort("policy", "object", "grasp_id")
+    )
+
+
+def default_comparisons(policies: Sequence[str]) -> list[tuple[str, str]]:
+    """Each monitor against the proxy, and every policy against no reflex."""
+    monitors = [p for p in policies if p not in ("none", "always", "oracle", "proxy")]
+    pairs = [(p, "proxy") for p in monitors if "proxy" in policies]
+    return pairs + [(p, "none") for p in policies if p != "none" and "none" in policies]
