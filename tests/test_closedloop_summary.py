@@ -8,6 +8,7 @@ import polars as pl
 import pytest
 
 from graspstab.closedloop.summary import (
+    aggregate_closed_loop,
     bootstrap_weights,
     default_comparisons,
     summarise_policies,
@@ -133,3 +134,26 @@ def test_worse_lists_every_grasp_a_policy_pushes_out_and_missing_rows_are_named(
     t = planted().filter(~((pl.col("policy") == "gru") & (pl.col("grasp_id") == 4)))
     with pytest.raises(ValueError, match="policy 'gru' has no row for object 'a' grasp 4"):
         summarise_policies(t, ["none", "gru"], resamples=10)
+
+
+def test_aggregate_writes_the_tables_and_states_the_answer(tmp_path) -> None:
+    t = planted()
+    paths = []
+    for obj in ("a", "b"):
+        paths.append(tmp_path / f"{obj}.parquet")
+        t.filter(pl.col("object") == obj).write_parquet(paths[-1])
+    pols = ["none", "always", "proxy", "gru"]
+    summary = aggregate_closed_loop([str(p) for p in paths], pols, "creep_free",
+                                    {"resamples": 400, "level": 0.95, "seed": 0},
+                                    str(tmp_path / "out"))  # fmt: skip
+    assert summary["grasps"] == N and summary["unusable"] == 1 and summary["objects"] == ["a", "b"]
+    assert summary["worse_by_policy"] == {"none": 0, "always": 1, "proxy": 0, "gru": 0}
+    text = summary["answer"]
+    assert text.startswith("Under the creep-free load ramp, over 12 test grasps (6 dropped")
+    assert (
+        "gru drops 50.0 % against the proxy's 25.0 % (no resolved difference from the proxy: +25.0 "
+        "points [+0.0, +50.0]" in text
+    )
+    assert "Always (the force-hungry bound) prevents 6 of 6." in text and "oracle" not in text
+    for name in ("policies", "comparisons", "worse"):
+        assert pl.read_parquet(tmp_path / "out" / f"{name}.parquet").height > 0

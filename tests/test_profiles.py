@@ -198,6 +198,16 @@ def test_closed_loop_runs_every_test_object_per_protocol_on_that_protocols_monit
         assert len(sweep) == 6 and all(p.startswith(root) and "/w10ms/seed42/" in p for p in sweep)
         pick = any("monitor/export/pick" in p for p in j["input"])
         assert pick == (j["wildcards"]["protocol"] == "reference")
+    summaries = [j for j in listed_jobs(proc.stdout) if j["rule"] == "aggregate_closed_loop"]
+    assert sorted(j["wildcards"]["protocol"] for j in summaries) == ["creep_free", "reference"]
+    # the report reads each protocol's summary and every closed-loop job's benchmark
+    proc = _snakemake(tmp_path, bare_env, "--dry-run", "results/report.html", "--config", *on)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    (report,) = [j for j in listed_jobs(proc.stdout) if j["rule"] == "report"]
+    for p in ("creep_free", "reference"):
+        assert f"results/closed_loop/summary/{p}/summary.json" in report["input"]
+        for o in tests:
+            assert f"results/benchmarks/closed_loop_object/{p}_{o}.tsv" in report["input"]
     proc = _snakemake(tmp_path, bare_env, "--dry-run", "closed_loop", "--config", on[0])
     assert proc.returncode != 0
     assert "set creep_free.enabled=true, or closed_loop.protocols=[reference]" in proc.stdout

@@ -37,11 +37,14 @@ def closed_loop_inputs(wildcards):
     return out
 
 
-def closed_loop_tables():
-    """Every per-object closed-loop table: protocol x test object."""
+def closed_loop_tables(protocols=None):
+    """The per-object closed-loop tables: protocol (all, or ``protocols``) x test object."""
     tests = [o for o, s in object_splits().items() if s == "test"]
     return expand("results/closed_loop/{protocol}/{object}.parquet",
-                  protocol=CL["protocols"], object=tests)  # fmt: skip
+                  protocol=protocols or CL["protocols"], object=tests)  # fmt: skip
+
+
+CL_SUMMARY = "results/closed_loop/summary/{protocol}"
 
 
 wildcard_constraints:
@@ -77,11 +80,45 @@ rule closed_loop_object:
         "../scripts/closed_loop_object.py"
 
 
+rule aggregate_closed_loop:
+    input:
+        lambda wc: closed_loop_tables([wc.protocol]),
+    output:
+        policies=f"{CL_SUMMARY}/policies.parquet",
+        comparisons=f"{CL_SUMMARY}/comparisons.parquet",
+        worse=f"{CL_SUMMARY}/worse.parquet",
+        summary=f"{CL_SUMMARY}/summary.json",
+    params:
+        policies=lambda wc: closed_loop_policies(wc.protocol),
+        bootstrap=CL["bootstrap"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/aggregate_closed_loop/{protocol}.log",
+    benchmark:
+        "results/benchmarks/aggregate_closed_loop/{protocol}.tsv"
+    script:
+        "../scripts/aggregate_closed_loop.py"
+
+
+# The summaries per protocol, as named inputs of the report (closed_loop_<protocol>_<artefact>).
+CLOSED_LOOP_ARTEFACTS = {
+    f"{p}_{k}": v.replace("{protocol}", p)
+    for p in CL["protocols"]
+    for k, v in rules.aggregate_closed_loop.output.items()
+}
+
+
 localrules:
     closed_loop,
 
 
 rule closed_loop:
-    """Target: every closed-loop table (snakemake --cores 2 closed_loop --config ...)."""
+    """Target: every closed-loop table and summary (snakemake --cores 2 closed_loop --config ...)."""
     input:
         closed_loop_tables(),
+        CLOSED_LOOP_ARTEFACTS.values(),

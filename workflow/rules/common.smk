@@ -166,6 +166,8 @@ def audit_runs():
 AUDIT_ARTEFACTS = {}
 # The k-fold study's artefacts per protocol (crossval.smk), empty unless it is enabled.
 CROSSVAL_ARTEFACTS = {}
+# The closed loop's summaries per protocol (closed_loop.smk), empty unless it is enabled.
+CLOSED_LOOP_ARTEFACTS = {}
 
 
 # The sensor-robustness study's artefacts the report reads (set by sensing.smk when it runs).

@@ -14,6 +14,7 @@ MONITOR = "monitor_"
 SENSING = "sensing_"
 AUDIT = "audit_"
 CROSSVAL = "crossval_"
+CLOSED_LOOP = "closed_loop_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -59,4 +60,5 @@ write_report(
     sensing=prefixed(SENSING),
     audit=prefixed(AUDIT),
     crossval=prefixed(CROSSVAL),
+    closed_loop=prefixed(CLOSED_LOOP),
 )

@@ -11,10 +11,13 @@ replacement once and scores every policy on that same draw, so policies are comp
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import polars as pl
+
+from graspstab.common.io import read_parquet, write_json, write_parquet
 
 # rate name: (the row's flag, the grasps it is a share of); "all": every usable grasp
 RATES: dict[str, tuple[str, str]] = {
@@ -197,3 +200,90 @@ def default_comparisons(policies: Sequence[str]) -> list[tuple[str, str]]:
     monitors = [p for p in policies if p not in ("none", "always", "oracle", "proxy")]
     pairs = [(p, "proxy") for p in monitors if "proxy" in policies]
     return pairs + [(p, "none") for p in policies if p != "none" and "none" in policies]
+
+
+PROTOCOL_NAMES = {"reference": "the reference protocol (gravity switch)",
+                  "creep_free": "the creep-free load ramp"}  # fmt: skip
+LEARNED = ("pick", "cnn", "gru", "lstm")
+DROP_VERDICTS = {"lower": "fewer drops than the proxy", "higher": "more drops than the proxy",
+                 "not resolved": "no resolved difference from the proxy"}  # fmt: skip
+
+
+def _pct(x: float) -> str:
+    return "n/a" if not np.isfinite(x) else f"{100 * x:.1f} %"
+
+
+def _span(lo: float, hi: float, points: bool = False) -> str:
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return "[n/a]"
+    f = "{:+.1f}" if points else "{:.1f}"
+    return f"[{f.format(100 * lo)}, {f.format(100 * hi)}]"
+
+
+def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: float) -> str:
+    """The section's one-paragraph answer: does a learned monitor save more grasps than the proxy
+    (drop rate, paired over grasps), at what false alarms and force, and what no warning saves."""
+    rows = {r["policy"]: r for r in policies.iter_rows(named=True)}
+    n = next(iter(rows.values()))["grasps"]
+    drops = next(iter(rows.values()))["baseline_drops"]
+    head = (f"Under {PROTOCOL_NAMES[protocol]}, over {n} test grasps ({drops} dropped without a "
+            "reflex)")  # fmt: skip
+    if "proxy" not in rows:
+        return head + ": the proxy was not run, so no learned-against-proxy answer is given."
+    cmp = {(r["policy"], r["figure"]): r for r in pairs.iter_rows(named=True)
+           if r["against"] == "proxy"}  # fmt: skip
+    parts = []
+    for m in (m for m in LEARNED if m in rows and (m, "drop_rate") in cmp):
+        d, fa = cmp[(m, "drop_rate")], cmp[(m, "false_alarm_rate")]
+        says = DROP_VERDICTS.get(d["verdict"], "undefined")
+        parts.append(f"{m} drops {_pct(rows[m]['drop_rate'])} against the proxy's "
+                     f"{_pct(rows['proxy']['drop_rate'])} ({says}: "
+                     f"{100 * d['diff']:+.1f} points {_span(d['lo'], d['hi'], True)}; false "
+                     f"alarms {100 * fa['diff']:+.1f} points "
+                     f"{_span(fa['lo'], fa['hi'], True)} against it)")  # fmt: skip
+    text = head + ": " + ("; ".join(parts) if parts else "no learned monitor was run") + "."
+    bounds = {"oracle": "the best any warning can do", "always": "the force-hungry bound"}
+    bound = [f"{p} ({why}) prevents {rows[p]['prevented']} of {drops}"
+             for p, why in bounds.items() if p in rows]  # fmt: skip
+    if bound:
+        text += " " + "; ".join(bound).capitalize() + "."
+    text += f" Intervals: {round(100 * level)} % paired bootstrap over grasps."
+    return text
+
+
+def aggregate_closed_loop(
+    tables: Sequence[str],
+    policies: Sequence[str],
+    protocol: str,
+    bootstrap: dict[str, Any],
+    out_dir: str,
+) -> dict[str, Any]:
+    """A protocol's per-object closed-loop tables -> policies.parquet, comparisons.parquet,
+    worse.parquet and summary.json (counts, the answer, the worse grasps per policy) in
+    ``out_dir``."""
+    table = pl.concat([read_parquet(t) for t in tables], how="diagonal_relaxed")
+    level = float(bootstrap["level"])
+    pols, pairs = summarise_policies(
+        table,
+        list(policies),
+        resamples=int(bootstrap["resamples"]),
+        level=level,
+        seed=int(bootstrap["seed"]),
+        compare=default_comparisons(policies),
+    )
+    worse = worse_grasps(table)
+    out = Path(out_dir)
+    write_parquet(out / "policies.parquet", pols)
+    write_parquet(out / "comparisons.parquet", pairs)
+    write_parquet(out / "worse.parquet", worse)
+    summary = {
+        "protocol": protocol,
+        "objects": sorted(table["object"].unique().to_list()),
+        "grasps": int(pols["grasps"][0]),
+        "unusable": int(table.filter(~pl.col("usable") & (pl.col("policy") == policies[0])).height),
+        "bootstrap": dict(bootstrap),
+        "worse_by_policy": {p: int((worse["policy"] == p).sum()) for p in policies},
+        "answer": answer(protocol, pols, pairs, level),
+    }
+    write_json(out / "summary.json", summary)
+    return summary

@@ -69,6 +69,8 @@ def benchmark_wildcards(
         },
         # the k-fold study (crossval.smk): none unless it is enabled
         **crossval_wildcards(config, objects),
+        # the closed loop (closed_loop.smk): none unless it is enabled
+        **closed_loop_wildcards(config, objects),
         "train_split_model": {
             "model": [config["splits"]["family"]],
             "k": list(range(assignments)),
@@ -93,6 +95,19 @@ def crossval_wildcards(
     return {
         "train_fold_model": keys,
         "train_fold_model_creep_free": keys if "creep_free" in cv["protocols"] else [],
+    }
+
+
+def closed_loop_wildcards(
+    config: Mapping[str, Any], objects: Sequence[str]
+) -> dict[str, dict[str, list]]:
+    """The closed loop's jobs: one per protocol x test object, and one summary per protocol."""
+    cl = config["closed_loop"]
+    protocols = list(cl["protocols"]) if cl["enabled"] else []
+    tests = [o for o in objects if config["objects"]["items"][o]["split"] == "test"]
+    return {
+        "closed_loop_object": {"protocol": protocols, "object": tests},
+        "aggregate_closed_loop": {"protocol": protocols},
     }
 
 

@@ -18,6 +18,7 @@ from graspstab.learning.artefacts import StudyArtefacts
 from graspstab.learning.presentation import UNDEFINED, finite
 from graspstab.report import dag
 from graspstab.report import html as H
+from graspstab.report.closed_loop import closed_loop_section
 from graspstab.report.creep_free import Benchmark, creep_free_section
 from graspstab.report.crossval import crossval_section
 from graspstab.report.funnel import funnel, funnel_table
@@ -489,6 +490,7 @@ def write_report(
     sensing: Mapping[str, Any] | None = None,
     audit: Mapping[str, Any] | None = None,
     crossval: Mapping[str, Any] | None = None,
+    closed_loop: Mapping[str, Any] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
@@ -501,7 +503,8 @@ def write_report(
     "Grasp-level warnings". ``sensing``: the sensor-robustness study's artefacts (``sensing_*``
     inputs), the section "Sensor realism"; ``audit``: the input audit's (``audit_*``);
     ``crossval``: the k-fold study's (``crossval_<protocol>_*``), the section "Generalisation
-    across objects"."""
+    across objects"; ``closed_loop``: the closed loop's summaries (``closed_loop_<protocol>_*``),
+    the section "Closed loop"."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -549,6 +552,7 @@ def write_report(
         sensing_section(sensing, config),
         audit_section(audit),
         crossval_section(crossval, config),
+        closed_loop_section(closed_loop, config),
         *_protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_summaries,
                           learning, figures),  # fmt: skip
         *_provenance_parts(

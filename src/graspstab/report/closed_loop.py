@@ -1,0 +1,170 @@
+"""The report's "Closed loop" section: per protocol, the answer, the policy table with bootstrap
+intervals, the paired comparisons and every grasp a policy drops that no reflex holds, read from
+graspstab.closedloop.summary.aggregate_closed_loop's files."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from graspstab.common.io import read_json, read_parquet
+from graspstab.report import html as H
+
+PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
+POLICIES = {
+    "none": "no reflex",
+    "always": "tighten from the first step (the force-hungry bound)",
+    "oracle": "tighten at the onset minus the horizon (the best any warning can do)",
+    "proxy": "the friction-ratio proxy as the monitor",
+    "pick": "the latency-aware pick (4.5)",
+    "cnn": "the CNN monitor",
+    "gru": "the GRU monitor",
+    "lstm": "the LSTM monitor",
+}
+WORSE_ROWS = 30  # grasps listed in the worse table; the count says how many there are
+
+
+def _finite(v: Any) -> bool:
+    return v is not None and math.isfinite(float(v))
+
+
+def _pct(r: Mapping[str, Any], key: str) -> str:
+    v, lo, hi = r[key], r[f"{key}_lo"], r[f"{key}_hi"]
+    if not _finite(v):
+        return "-"
+    span = f" [{100 * lo:.1f}, {100 * hi:.1f}]" if _finite(lo) and _finite(hi) else ""
+    return f"{100 * v:.1f}{span}"
+
+
+def _num(r: Mapping[str, Any], key: str, fmt: str = "{:.2f}") -> str:
+    v, lo, hi = r[key], r[f"{key}_lo"], r[f"{key}_hi"]
+    if not _finite(v):
+        return "-"
+    span = f" [{fmt.format(lo)}, {fmt.format(hi)}]" if _finite(lo) and _finite(hi) else ""
+    return fmt.format(v) + span
+
+
+def _protocol_parts(protocol: str, files: Mapping[str, Any]) -> list[str]:
+    summary = read_json(Path(files["summary"]))
+    policies = read_parquet(Path(files["policies"]))
+    pairs = read_parquet(Path(files["comparisons"]))
+    worse = read_parquet(Path(files["worse"]))
+    level = round(100 * summary["bootstrap"]["level"])
+    name = PROTOCOLS.get(protocol, protocol)
+    parts = [H.heading(3, f"closed-loop-{protocol}", f"Closed loop: {name}")]
+    parts.append(f'<p class="answer"><strong>{H.esc(summary["answer"])}</strong></p>')
+    rows = [
+        [
+            r["policy"],
+            f"{r['drops']} ({_pct(r, 'drop_rate')})",
+            f"{r['prevented']} of {r['baseline_drops']} ({_pct(r, 'prevented_share')})",
+            r["worse"],
+            f"{r['false_alarms']} ({_pct(r, 'false_alarm_rate')})",
+            _num(r, "added_normal_mean_n"),
+            _num(r, "added_normal_peak_n"),
+            _num(r, "tightened_s"),
+            _num(r, "lead_s", "{:.3f}"),
+            _num(r, "latency_s", "{:.3f}"),
+            _num(r, "slip_mm", "{:.1f}"),
+        ]
+        for r in policies.iter_rows(named=True)
+    ]
+    first = policies.row(0, named=True)
+    parts.append(
+        H.table(
+            [
+                "policy",
+                "drops (% of grasps)",
+                "drops prevented (% of no-reflex drops)",
+                "worse than no reflex",
+                "false alarms (% of holding grasps)",
+                "added normal force, mean [N]",
+                "added normal force, peak [N]",
+                "tightened [s]",
+                "lead before onset [s]",
+                "onset to tightened [s]",
+                "slip onset to arrest [mm]",
+            ],
+            rows,
+            caption=f"Policies on {first['grasps']} test grasps ({first['failing']} failing, "
+            f"{first['baseline_drops']} dropped without a reflex), {name}; [{level} % CI], "
+            "bootstrap over grasps; force, time and distance: means over the grasps where defined",
+        )
+    )
+    prows = [
+        [
+            r["policy"],
+            r["against"],
+            r["figure"].replace("_", " "),
+            f"{100 * r['diff']:+.1f} [{100 * r['lo']:+.1f}, {100 * r['hi']:+.1f}]"
+            if _finite(r["lo"])
+            else "-",
+            r["verdict"],
+        ]  # fmt: skip
+        for r in pairs.iter_rows(named=True)
+    ]
+    parts.append(
+        H.table(
+            ["policy", "against", "figure", f"difference (points) [{level} % CI]", "verdict"],
+            prows,
+            caption=f"Paired comparisons over the same grasps ({name}; policy minus against)",
+        )
+    )
+    total = worse.height
+    listed = worse.head(WORSE_ROWS)
+    parts.append(
+        f"<p>{total} (grasp, policy) pairs where the policy drops a grasp that holds without a "
+        f"reflex (tightening can push an object out)"
+        + (f"; the first {WORSE_ROWS} are listed" if total > WORSE_ROWS else "")
+        + ".</p>"
+    )
+    if total:
+        parts.append(
+            H.table(
+                ["policy", "object", "grasp", "dropped at [s]", "tightened at [s]"],
+                [
+                    [
+                        r["policy"],
+                        r["object"],
+                        r["grasp_id"],
+                        f"{r['drop_s']:.2f}",
+                        f"{r['tighten_s']:.2f}" if _finite(r["tighten_s"]) else "-",
+                    ]
+                    for r in listed.iter_rows(named=True)
+                ],  # fmt: skip
+                caption=f"Grasps a policy does worse on than no reflex ({name})",
+            )
+        )
+    return parts
+
+
+def closed_loop_section(closed_loop: Mapping[str, Any] | None, config: Mapping[str, Any]) -> str:
+    """The section, one part per protocol; nothing when the closed loop is off (a run without
+    it keeps the report it had)."""
+    cl = config.get("closed_loop", {})
+    if not closed_loop or not cl.get("enabled"):
+        return ""
+    parts = [H.heading(2, "closed-loop", "Closed loop: does a warning save the grasp?")]
+    reflex = cl["reflex"]
+    named = "; ".join(f"<em>{p}</em>: {POLICIES.get(p, p)}" for p in cl["policies"])
+    parts.append(
+        "<p>Every test grasp replayed once without a reflex and once per policy, on the same "
+        "grasp, seed and load, with the grip reflex in the replay's loop: when the policy warns, "
+        f"the closing joints' targets move {reflex['amount']} rad further in at "
+        f"{reflex['rate']} rad/s, {reflex['delay_s']} s after the warning plus the monitor's "
+        f"measured latency (release: {reflex['release']}). Monitors: each family's model at "
+        f"{cl['window_s']} s with its validation-selected threshold. Policies: {named}. A drop "
+        "is a contact-free run of at least labels.contact_loss_s; definitions in "
+        "docs/extensions.md (Closed loop).</p>"
+    )
+    for protocol in cl["protocols"]:
+        files = {
+            k.removeprefix(f"{protocol}_"): v
+            for k, v in closed_loop.items()
+            if k.startswith(f"{protocol}_")
+        }
+        if "summary" in files:
+            parts += _protocol_parts(protocol, files)
+    return "\n".join(parts)
