@@ -150,3 +150,19 @@ def test_protocol_params_are_the_replay_stages_but_for_the_closed_loops_ramp_pat
     assert loop["protocol"] == "ramp" and loop["contact"] == cfg["creep_free"]["contact"]
     with pytest.raises(ValueError, match="unknown protocol 'slip'"):
         protocol_params(cfg, "slip")
+
+
+def test_max_grasps_keeps_the_lowest_ids(
+    foam_brick_dir: Path, built_hand_dir: Path, tmp_path: Path
+) -> None:
+    cfg = compose_config(Path(__file__).parents[1] / "config", [])
+    params = dict(protocol_params(cfg, "reference"), steps=200)
+    grasp = {"shard": 0, "wrist_x": 0.3, "wrist_y": -0.1, "wrist_z": 0.05,
+             **{f"quat_{a}": v for a, v in zip("wxyz", (1.0, 0.0, 0.0, 0.0), strict=True)},
+             **{f"theta_{k:02d}": 0.0 for k in range(16)}}  # fmt: skip
+    pl.DataFrame([dict(grasp, grasp_id=i) for i in (9, 3, 5)]).write_parquet(tmp_path / "g.parquet")
+    table, traces = closed_loop_object(
+        "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "g.parquet", params,
+        cfg["labels"], build_policies(["none"]), ReflexParams(0.2, 4.0, 0.01), max_grasps=2,
+    )  # fmt: skip
+    assert table["grasp_id"].to_list() == [3, 5] and traces == {}

@@ -33,7 +33,7 @@ def compute() -> None:
         list(sm.input.grasps), dict(sm.params.replay), dict(sm.params.labels), policies,
         ReflexParams(**cl["reflex"]), stride=int(monitor["stride"]),
         debounce=int(monitor["debounce"]), arm_s=float(cl["arm_s"]),
-        oracle_lead_s=cl["oracle_lead_s"],
+        oracle_lead_s=cl["oracle_lead_s"], max_grasps=cl["grasps"],
     )  # fmt: skip
     thresholds = {p.name: p.threshold for p in policies if p.threshold is not None}
     latencies = {p.name: p.latency_s for p in policies if p.kind == "monitor"}

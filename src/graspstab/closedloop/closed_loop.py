@@ -84,13 +84,14 @@ def closed_loop_object(
     arm_s: float = 0.0,
     oracle_lead_s: float | None = None,
     grasp_ids: Sequence[int] | None = None,
+    max_grasps: int | None = None,
     keep_traces: bool = False,
 ) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
-    """Every grasp (or ``grasp_ids``) of ``grasp_table`` (one shard table or several) under
-    every policy. Returns one row per grasp and policy (``closedloop.outcome``'s columns, the
-    wall time) and, with ``keep_traces``, each run's traces keyed (grasp id, policy); without it
-    the traces are dropped after each grasp (an object's runs would otherwise all stay in
-    memory)."""
+    """Every grasp (or ``grasp_ids``; at most ``max_grasps``, the lowest ids) of ``grasp_table``
+    (one shard table or several) under every policy. Returns one row per grasp and policy
+    (``closedloop.outcome``'s columns, the wall time) and, with ``keep_traces``, each run's
+    traces keyed (grasp id, policy); without it the traces are dropped after each grasp (an
+    object's runs would otherwise all stay in memory)."""
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
     dt = float(params["timestep"])
@@ -100,6 +101,8 @@ def closed_loop_object(
     grasps = pl.concat([read_parquet(t) for t in tables], how="diagonal_relaxed")
     if grasp_ids is not None:
         grasps = grasps.filter(pl.col("grasp_id").is_in(list(grasp_ids)))
+    if max_grasps is not None:
+        grasps = grasps.sort("grasp_id").head(max_grasps)
     rows, traces = [], {}
     for i, g in enumerate(grasps.iter_rows(named=True)):
         gid = int(g["grasp_id"])
