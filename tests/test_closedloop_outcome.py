@@ -5,19 +5,22 @@ from __future__ import annotations
 from pathlib import Path
 from types import SimpleNamespace
 
+import mujoco
 import numpy as np
 import polars as pl
 import pytest
 import yaml
 
-from graspstab.closedloop.closed_loop import closed_loop_object, protocol_params
+from graspstab.closedloop.closed_loop import closed_loop_object, protocol_params, replay_once
 from graspstab.closedloop.outcome import baseline_of, drop_step, outcome, slip_distance
-from graspstab.closedloop.policies import Policy
+from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
 from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies, latency_s
 from graspstab.config.compose import compose_config
+from graspstab.monitor.constants import MonitorConstants
 from graspstab.replay.protocols import creep_free_replay, replay_params
 from graspstab.replay.run import REFLEX
+from graspstab.replay.scene import build_replay_scene
 
 DT = 5e-4
 LABELS = yaml.safe_load((Path(__file__).parents[1] / "config/labels/default.yaml").read_text())
@@ -166,3 +169,49 @@ def test_max_grasps_keeps_the_lowest_ids(
         cfg["labels"], build_policies(["none"]), ReflexParams(0.2, 4.0, 0.01), max_grasps=2,
     )  # fmt: skip
     assert table["grasp_id"].to_list() == [3, 5] and traces == {}
+
+
+class Constant:
+    """A scorer that gives every window the same probability."""
+
+    def __init__(self, p: float, window: int = 20) -> None:
+        self.p = p
+        self.constants = MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.5, window)
+
+    def score_one(self, window: np.ndarray) -> float:
+        return self.p
+
+    def __call__(self, windows: np.ndarray) -> np.ndarray:
+        return np.full(len(windows), self.p)
+
+
+def test_a_monitor_that_never_acts_reuses_the_no_reflex_run_and_matches_its_replay(
+    foam_brick_dir: Path, built_hand_dir: Path, tmp_path: Path
+) -> None:
+    cfg = compose_config(Path(__file__).parents[1] / "config", [])
+    params = dict(protocol_params(cfg, "reference"), steps=600)
+    grasp = {"grasp_id": 1, "shard": 0, "wrist_x": 0.3, "wrist_y": -0.1, "wrist_z": 0.05,
+             **{f"quat_{a}": v for a, v in zip("wxyz", (1.0, 0.0, 0.0, 0.0), strict=True)},
+             **{f"theta_{k:02d}": 0.0 for k in range(16)}}  # fmt: skip
+    pl.DataFrame([grasp]).write_parquet(tmp_path / "g.parquet")
+    calm, alarmed = Policy("calm", "monitor", Constant(0.1)), Policy("alarmed", "monitor",
+                                                                   Constant(0.9))  # fmt: skip
+    reflex = ReflexParams(0.2, 4.0, 0.01)
+    table, traces = closed_loop_object(
+        "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "g.parquet", params,
+        cfg["labels"], [Policy("none", "none"), calm, alarmed], reflex, keep_traces=True,
+    )  # fmt: skip
+    rows = {r["policy"]: r for r in table.iter_rows(named=True)}
+    assert not rows["calm"]["replayed"] and not rows["calm"]["fired"]
+    assert rows["alarmed"]["replayed"] and rows["alarmed"]["fired"]
+    # the calm monitor in the loop, replayed for real, gives the same row and traces
+    scene = build_replay_scene(built_hand_dir, foam_brick_dir, params)
+    closing, upper = actuator_axes(scene, scene.model.nu)
+    grip = make_reflex(calm, reflex, closing, upper, float(params["timestep"]))
+    run = replay_once(scene, mujoco.MjData(scene.model), grasp, "061_foam_brick", params, grip)
+    base = baseline_of(traces[(1, "none")], cfg["labels"], float(params["timestep"]))
+    real = outcome(run.traces, grip, base, cfg["labels"], float(params["timestep"]))
+    for k, v in real.items():
+        assert rows["calm"][k] == pytest.approx(v, nan_ok=True), k
+    n = min(run.steps, rows["none"]["steps"])
+    np.testing.assert_array_equal(run.traces["normal"][:n], traces[(1, "calm")]["normal"][:n])

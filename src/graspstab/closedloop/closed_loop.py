@@ -22,7 +22,7 @@ import polars as pl
 
 from graspstab.closedloop.outcome import baseline_of, outcome
 from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
-from graspstab.closedloop.reflex import ReflexParams
+from graspstab.closedloop.reflex import GripReflex, ReflexParams
 from graspstab.common.io import read_parquet, write_parquet
 from graspstab.labels.interval import steps_of
 from graspstab.replay.protocols import creep_free_replay, replay_params
@@ -50,6 +50,17 @@ def with_ramp_path(params: dict[str, Any], path: str | None) -> dict[str, Any]:
     if path is None or params["protocol"] == "gravity":
         return params
     return {**params, "ramp": {**params["ramp"], "path": path}}
+
+
+def acts_on(grip: GripReflex, traces: dict[str, np.ndarray]) -> bool:
+    """Whether a monitor-driven reflex would move the targets within the no-reflex run.
+
+    Until the reflex first tightens, the closed-loop replay is the no-reflex one step for step
+    (same state, same targets), so the monitor sees exactly the no-reflex run's forces. Scanning
+    them (``grip`` then holds the warnings the loop would raise) decides whether the loop can
+    differ at all; only a reflex that tightens needs its replay."""
+    grip.observe(0, traces["normal"], traces["shear"])
+    return bool(grip.on_steps) and grip.on_steps[0] < len(traces["normal"])
 
 
 def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_id: str,
@@ -103,6 +114,12 @@ def closed_loop_object(
         grasps = grasps.filter(pl.col("grasp_id").is_in(list(grasp_ids)))
     if max_grasps is not None:
         grasps = grasps.sort("grasp_id").head(max_grasps)
+
+    def reflex_for(policy: Policy, onset: int | None) -> GripReflex | None:
+        return make_reflex(policy, reflex, closing, upper, dt, onset=onset,
+                           oracle_lead_steps=steps_of(lead, dt), arm_step=steps_of(arm_s, dt),
+                           stride=stride, debounce=debounce)  # fmt: skip
+
     rows, traces = [], {}
     for i, g in enumerate(grasps.iter_rows(named=True)):
         gid = int(g["grasp_id"])
@@ -110,25 +127,29 @@ def closed_loop_object(
         base_run = replay_once(scene, data, g, object_id, params)
         base = baseline_of(base_run.traces, labels, dt)
         wall = {"none": time.perf_counter() - start}
+        replayed = {"none": True}
         runs = {"none": (base_run, None)}
         for policy in policies:
             if policy.kind == "none":
                 continue
-            grip = make_reflex(policy, reflex, closing, upper, dt, onset=base.onset,
-                               oracle_lead_steps=steps_of(lead, dt),
-                               arm_step=steps_of(arm_s, dt), stride=stride,
-                               debounce=debounce)  # fmt: skip
             start = time.perf_counter()
-            run = base_run if grip is None else replay_once(scene, data, g, object_id, params,
-                                                            grip)  # fmt: skip
+            grip = reflex_for(policy, base.onset)
+            if grip is None:
+                run = base_run
+            elif policy.kind == "monitor" and not acts_on(grip, base_run.traces):
+                run = base_run  # the scan saw every frame the loop would: no replay needed
+            else:
+                grip = reflex_for(policy, base.onset)
+                run = replay_once(scene, data, g, object_id, params, grip)
             wall[policy.name] = time.perf_counter() - start
+            replayed[policy.name] = run is not base_run
             runs[policy.name] = (run, grip)
         for name in ["none"] + [p.name for p in policies if p.kind != "none"]:
             run, grip = runs[name]
             rows.append({"object": object_id, "grasp_id": gid, "policy": name,
                          "stop_reason": run.stop_reason, "steps": run.steps,
                          **outcome(run.traces, grip, base, labels, dt),
-                         "wall_s": wall[name]})  # fmt: skip
+                         "replayed": replayed[name], "wall_s": wall[name]})  # fmt: skip
             if keep_traces:
                 traces[(gid, name)] = run.traces
         done = [r for r in rows if r["grasp_id"] == gid]
