@@ -16,6 +16,7 @@ from graspstab.closedloop.outcome import baseline_of, drop_step, outcome, slip_d
 from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
 from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies, latency_s
+from graspstab.closedloop.sweep import sweep_variants
 from graspstab.config.compose import compose_config
 from graspstab.monitor.constants import MonitorConstants
 from graspstab.replay.protocols import creep_free_replay, replay_params
@@ -114,8 +115,13 @@ def test_closed_loop_object_runs_every_policy_on_the_same_grasp(
     table, traces = closed_loop_object(
         "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "grasps.parquet", params,
         cfg["labels"], policies, ReflexParams(amount=0.2, rate=4.0, delay_s=0.01),
-        keep_traces=True,
+        keep_traces=True, variants=sweep_variants([policies[1]], {"amount": [0.1]},
+                                                  ReflexParams(0.2, 4.0, 0.01), 1, 0.0),
     )  # fmt: skip
+    swept = table.filter(pl.col("policy") == "always@amount=0.1").row(0, named=True)
+    assert swept["parameter"] == "amount" and swept["value"] == 0.1
+    assert swept["peak_offset_rad"] == pytest.approx(0.1)
+    table = table.filter(pl.col("parameter") == "")
     assert table["policy"].to_list() == ["none", "always", "oracle"]
     rows = {r["policy"]: r for r in table.iter_rows(named=True)}
     # far from the hand the object falls at once: every policy drops it, none prevents a drop

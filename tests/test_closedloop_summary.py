@@ -157,3 +157,24 @@ def test_aggregate_writes_the_tables_and_states_the_answer(tmp_path) -> None:
     assert "Always (the force-hungry bound) prevents 6 of 6." in text and "oracle" not in text
     for name in ("policies", "comparisons", "worse"):
         assert pl.read_parquet(tmp_path / "out" / f"{name}.parquet").height > 0
+
+
+def test_tradeoff_sets_each_variant_beside_its_policys_defaults(tmp_path) -> None:
+    t = planted().with_columns(parameter=pl.lit(""), value=pl.lit(float("nan")))
+    variant = t.filter(pl.col("policy") == "gru").with_columns(
+        policy=pl.lit("proxy@amount=0.1"), parameter=pl.lit("amount"), value=pl.lit(0.1)
+    )
+    t.vstack(variant).write_parquet(tmp_path / "a.parquet")
+    pols = ["none", "always", "proxy", "gru"]
+    summary = aggregate_closed_loop([str(tmp_path / "a.parquet")], pols, "reference",
+                                    {"resamples": 200, "level": 0.95, "seed": 0},
+                                    str(tmp_path / "out"))  # fmt: skip
+    assert summary["swept"] == 1
+    assert pl.read_parquet(tmp_path / "out/policies.parquet")["policy"].to_list() == pols
+    trade = pl.read_parquet(tmp_path / "out/tradeoff.parquet")
+    assert trade.select("policy", "base", "parameter").rows() == [
+        ("proxy", "proxy", "default"), ("proxy@amount=0.1", "proxy", "amount")
+    ]  # fmt: skip
+    # the variant is gru's rows: its figures are gru's, on the same grasps
+    assert trade["prevented_share"].to_list() == pytest.approx([0.5, 0.0])
+    assert trade["false_alarm_rate"].to_list() == pytest.approx([0.25, 0.25])

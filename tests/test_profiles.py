@@ -206,6 +206,7 @@ def test_closed_loop_runs_every_test_object_per_protocol_on_that_protocols_monit
     (report,) = [j for j in listed_jobs(proc.stdout) if j["rule"] == "report"]
     for p in ("creep_free", "reference"):
         assert f"results/closed_loop/summary/{p}/summary.json" in report["input"]
+        assert f"results/figures/closed_loop/{p}_timeline.png" in report["input"]
         for o in tests:
             assert f"results/benchmarks/closed_loop_object/{p}_{o}.tsv" in report["input"]
     proc = _snakemake(tmp_path, bare_env, "--dry-run", "closed_loop", "--config", on[0])

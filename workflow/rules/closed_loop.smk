@@ -22,6 +22,16 @@ def closed_loop_policies(protocol):
     return [p for p in CL["policies"] if p != "pick" or protocol == "reference"]
 
 
+def timeline_policy(protocol):
+    """The policy the timeline figure shows: the pick, else the first learned family, else the
+    proxy, else the first policy with a reflex (None: no reflex run at all)."""
+    names = closed_loop_policies(protocol)
+    for choice in ("pick", *MODELS, "proxy", *(p for p in names if p != "none")):
+        if choice in names:
+            return choice
+    return None
+
+
 def closed_loop_inputs(wildcards):
     """A protocol's monitors: checkpoints and metrics, the pick's export, the proxy's dataset
     and the latency table."""
@@ -58,12 +68,14 @@ rule closed_loop_object:
         object_xml="results/objects/{object}/object.xml",
         hand=rules.build_hand.output,
     output:
-        "results/closed_loop/{protocol}/{object}.parquet",
+        table="results/closed_loop/{protocol}/{object}.parquet",
+        timeline="results/closed_loop/{protocol}/timeline/{object}.npz",
     params:
         replay=lambda wc: protocol_params(config, wc.protocol),
         labels=config["labels"],
         closed_loop=CL,
         policies=lambda wc: closed_loop_policies(wc.protocol),
+        timeline=lambda wc: timeline_policy(wc.protocol),
         monitor=config["monitor"],
         threshold=config["train"]["threshold"],
     conda:
@@ -87,6 +99,7 @@ rule aggregate_closed_loop:
         policies=f"{CL_SUMMARY}/policies.parquet",
         comparisons=f"{CL_SUMMARY}/comparisons.parquet",
         worse=f"{CL_SUMMARY}/worse.parquet",
+        tradeoff=f"{CL_SUMMARY}/tradeoff.parquet",
         summary=f"{CL_SUMMARY}/summary.json",
     params:
         policies=lambda wc: closed_loop_policies(wc.protocol),
@@ -105,12 +118,43 @@ rule aggregate_closed_loop:
         "../scripts/aggregate_closed_loop.py"
 
 
-# The summaries per protocol, as named inputs of the report (closed_loop_<protocol>_<artefact>).
+rule plot_closed_loop:
+    input:
+        summary=rules.aggregate_closed_loop.output.summary,
+        tradeoff=rules.aggregate_closed_loop.output.tradeoff,
+        policies=rules.aggregate_closed_loop.output.policies,
+        timelines=lambda wc: [p.replace(".parquet", ".npz").replace(
+            f"/{wc.protocol}/", f"/{wc.protocol}/timeline/")
+            for p in closed_loop_tables([wc.protocol])],  # fmt: skip
+    output:
+        tradeoff="results/figures/closed_loop/{protocol}_tradeoff.png",
+        timeline="results/figures/closed_loop/{protocol}_timeline.png",
+    params:
+        v_slip=config["labels"]["v_slip"],
+        dt=config["replay"]["timestep"],
+        dpi=config["report"]["figure_dpi"],
+    conda:
+        CONDA_ENV
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/plot_closed_loop/{protocol}.log",
+    benchmark:
+        "results/benchmarks/plot_closed_loop/{protocol}.tsv"
+    script:
+        "../scripts/plot_closed_loop.py"
+
+
+# The summaries and figures per protocol, as named inputs of the report
+# (closed_loop_<protocol>_<artefact>).
 CLOSED_LOOP_ARTEFACTS = {
     f"{p}_{k}": v.replace("{protocol}", p)
     for p in CL["protocols"]
-    for k, v in rules.aggregate_closed_loop.output.items()
-}
+    for k, v in [*rules.aggregate_closed_loop.output.items(),
+                 *((f"{k}_figure", v) for k, v in rules.plot_closed_loop.output.items())]
+}  # fmt: skip
 
 
 localrules:

@@ -4,9 +4,10 @@ from pathlib import Path
 
 import torch
 
-from graspstab.closedloop.closed_loop import closed_loop_object, write_closed_loop
+from graspstab.closedloop.closed_loop import closed_loop_object, write_closed_loop, write_timeline
 from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies
+from graspstab.closedloop.sweep import sweep_variants
 from graspstab.common.cache import run_cached
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
@@ -28,16 +29,22 @@ def compute() -> None:
         threshold=dict(sm.params.threshold), latency_table=inputs["latency"],
     )  # fmt: skip
     monitor = dict(sm.params.monitor)
-    table, _ = closed_loop_object(
+    reflex = ReflexParams(**cl["reflex"])
+    sweep = dict(cl["sweep"])
+    swept = [p for p in policies if p.name in sweep.pop("policies")]
+    variants = sweep_variants(swept, sweep, reflex, int(monitor["debounce"]), float(cl["arm_s"]))
+    table, traces = closed_loop_object(
         sm.wildcards.object, Path(sm.input.object_xml).parent, Path(sm.input.hand[0]).parent,
         list(sm.input.grasps), dict(sm.params.replay), dict(sm.params.labels), policies,
-        ReflexParams(**cl["reflex"]), stride=int(monitor["stride"]),
+        reflex, stride=int(monitor["stride"]),
         debounce=int(monitor["debounce"]), arm_s=float(cl["arm_s"]),
-        oracle_lead_s=cl["oracle_lead_s"], max_grasps=cl["grasps"],
+        oracle_lead_s=cl["oracle_lead_s"], max_grasps=cl["grasps"], variants=variants,
+        timeline=sm.params.timeline,
     )  # fmt: skip
     thresholds = {p.name: p.threshold for p in policies if p.threshold is not None}
     latencies = {p.name: p.latency_s for p in policies if p.kind == "monitor"}
-    write_closed_loop(sm.output[0], table, {
+    write_timeline(sm.output.timeline, table, traces)
+    write_closed_loop(sm.output.table, table, {
         "object_id": sm.wildcards.object, "protocol": sm.wildcards.protocol,
         "policies": names, "thresholds": thresholds, "latency_s": latencies,
         "provenance": provenance("closedloop", {**cl, "replay": dict(sm.params.replay)}),

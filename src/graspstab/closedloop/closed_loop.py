@@ -10,6 +10,7 @@ raises the friction capacity above it arrests the slip.
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from collections.abc import Sequence
@@ -23,7 +24,8 @@ import polars as pl
 from graspstab.closedloop.outcome import baseline_of, outcome
 from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
 from graspstab.closedloop.reflex import GripReflex, ReflexParams
-from graspstab.common.io import read_parquet, write_parquet
+from graspstab.closedloop.sweep import Variant, default_variant
+from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.labels.interval import steps_of
 from graspstab.replay.protocols import creep_free_replay, replay_params
 from graspstab.replay.replay_grasps import deep_stop, grasp_load
@@ -63,6 +65,18 @@ def acts_on(grip: GripReflex, traces: dict[str, np.ndarray]) -> bool:
     return bool(grip.on_steps) and grip.on_steps[0] < len(traces["normal"])
 
 
+def timeline_rank(row: dict[str, Any]) -> int:
+    """How well one grasp's row shows the reflex at work: 4 a drop it prevented, 3 a failing
+    grasp it tightened on, 2 any failing grasp, 1 a grasp it tightened on, 0 the rest."""
+    if not row["usable"]:
+        return -1
+    if row["prevented"]:
+        return 4
+    if row["failing"]:
+        return 3 if row["fired"] else 2
+    return 1 if row["fired"] else 0
+
+
 def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_id: str,
                 params: dict[str, Any], controller: Any = None) -> ReplayResult:  # fmt: skip
     """One replay of ``grasp`` (a grasp-table row) from its placement, with ``controller``."""
@@ -96,13 +110,18 @@ def closed_loop_object(
     oracle_lead_s: float | None = None,
     grasp_ids: Sequence[int] | None = None,
     max_grasps: int | None = None,
+    variants: Sequence[Variant] = (),
     keep_traces: bool = False,
+    timeline: str | None = None,
 ) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
     """Every grasp (or ``grasp_ids``; at most ``max_grasps``, the lowest ids) of ``grasp_table``
-    (one shard table or several) under every policy. Returns one row per grasp and policy
-    (``closedloop.outcome``'s columns, the wall time) and, with ``keep_traces``, each run's
-    traces keyed (grasp id, policy); without it the traces are dropped after each grasp (an
-    object's runs would otherwise all stay in memory)."""
+    (one shard table or several) under every policy (with ``reflex``, ``debounce`` and
+    ``arm_s``), then under every ``variants`` entry (``closedloop.sweep``). Returns one row per
+    grasp and policy or variant (``closedloop.outcome``'s columns, the variant's parameter and
+    value, the wall time) and, with ``keep_traces``, each run's traces keyed (grasp id, label);
+    without it the traces are dropped after each grasp (an object's runs would otherwise all
+    stay in memory). ``timeline`` (a label): the traces returned are instead the no-reflex and
+    that label's runs of the one grasp that shows the reflex best (``timeline_rank``)."""
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
     dt = float(params["timestep"])
@@ -115,12 +134,18 @@ def closed_loop_object(
     if max_grasps is not None:
         grasps = grasps.sort("grasp_id").head(max_grasps)
 
-    def reflex_for(policy: Policy, onset: int | None) -> GripReflex | None:
-        return make_reflex(policy, reflex, closing, upper, dt, onset=onset,
-                           oracle_lead_steps=steps_of(lead, dt), arm_step=steps_of(arm_s, dt),
-                           stride=stride, debounce=debounce)  # fmt: skip
+    runs_of = [default_variant(p, reflex, debounce, arm_s) for p in policies
+               if p.kind != "none"] + list(variants)  # fmt: skip
+    labels_seen = [v.label for v in runs_of]
+    if len(set(labels_seen)) != len(labels_seen) or "none" in labels_seen:
+        raise ValueError(f"closed loop: run labels must be unique and not 'none': {labels_seen}")
 
-    rows, traces = [], {}
+    def reflex_for(v: Variant, onset: int | None) -> GripReflex | None:
+        return make_reflex(v.policy, v.reflex, closing, upper, dt, onset=onset,
+                           oracle_lead_steps=steps_of(lead, dt), arm_step=steps_of(v.arm_s, dt),
+                           stride=stride, debounce=v.debounce)  # fmt: skip
+
+    rows, traces, best = [], {}, -1
     for i, g in enumerate(grasps.iter_rows(named=True)):
         gid = int(g["grasp_id"])
         start = time.perf_counter()
@@ -129,30 +154,36 @@ def closed_loop_object(
         wall = {"none": time.perf_counter() - start}
         replayed = {"none": True}
         runs = {"none": (base_run, None)}
-        for policy in policies:
-            if policy.kind == "none":
-                continue
+        for v in runs_of:
             start = time.perf_counter()
-            grip = reflex_for(policy, base.onset)
+            grip = reflex_for(v, base.onset)
             if grip is None:
                 run = base_run
-            elif policy.kind == "monitor" and not acts_on(grip, base_run.traces):
+            elif v.policy.kind == "monitor" and not acts_on(grip, base_run.traces):
                 run = base_run  # the scan saw every frame the loop would: no replay needed
             else:
-                grip = reflex_for(policy, base.onset)
+                grip = reflex_for(v, base.onset)
                 run = replay_once(scene, data, g, object_id, params, grip)
-            wall[policy.name] = time.perf_counter() - start
-            replayed[policy.name] = run is not base_run
-            runs[policy.name] = (run, grip)
-        for name in ["none"] + [p.name for p in policies if p.kind != "none"]:
+            wall[v.label] = time.perf_counter() - start
+            replayed[v.label] = run is not base_run
+            runs[v.label] = (run, grip)
+        swept = {v.label: (v.parameter, v.value) for v in runs_of}
+        for name in ["none", *(v.label for v in runs_of)]:
             run, grip = runs[name]
+            parameter, value = swept.get(name, ("", np.nan))
             rows.append({"object": object_id, "grasp_id": gid, "policy": name,
+                         "parameter": parameter, "value": value,
                          "stop_reason": run.stop_reason, "steps": run.steps,
                          **outcome(run.traces, grip, base, labels, dt),
                          "replayed": replayed[name], "wall_s": wall[name]})  # fmt: skip
             if keep_traces:
                 traces[(gid, name)] = run.traces
         done = [r for r in rows if r["grasp_id"] == gid]
+        if timeline is not None and timeline in runs:
+            rank = timeline_rank(next(r for r in done if r["policy"] == timeline))
+            if rank > best:
+                best, traces = rank, {(gid, "none"): base_run.traces,
+                                      (gid, timeline): runs[timeline][0].traces}  # fmt: skip
         log.info("%s grasp %d (%d/%d): baseline %s; dropped under %s (%.1f s wall)", object_id,
                  gid, i + 1, grasps.height, "fails" if base.failing else "holds",
                  ",".join(r["policy"] for r in done if r["dropped"]) or "none",
@@ -167,3 +198,22 @@ def write_closed_loop(
 ) -> None:
     """The per-object table (one row per grasp and policy), its settings in the metadata."""
     write_parquet(path, table, metadata={**meta, "mujoco_version": mujoco.__version__})
+
+
+def write_timeline(
+    path: str | Path, table: pl.DataFrame, traces: dict[tuple[int, str], dict[str, np.ndarray]]
+) -> None:
+    """The timeline grasp's two runs (``closed_loop_object(timeline=...)``) as one ``.npz``:
+    ``none/<channel>`` and ``reflex/<channel>``, with the grasp's row of the reflex run (its
+    times, rank) as ``meta`` (JSON); an empty ``meta`` when no run was kept."""
+    arrays: dict[str, Any] = {}
+    meta: dict[str, Any] = {}
+    for (gid, label), channels in traces.items():
+        side = "none" if label == "none" else "reflex"
+        arrays.update({f"{side}/{c}": v for c, v in channels.items()})
+        if side == "reflex":
+            row = table.filter((pl.col("grasp_id") == gid) & (pl.col("policy") == label))
+            meta = {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+                    for k, v in row.row(0, named=True).items()}  # fmt: skip
+            meta["rank"] = timeline_rank(row.row(0, named=True))
+    save_npz(path, meta=np.array(json.dumps(meta)), **arrays)

@@ -116,6 +116,7 @@ def outcome(
     row["worse"] = row["dropped"] and not row["baseline_dropped"]
     row["false_alarm"] = row["fired"] and base.usable and not base.failing
     onset = base.onset
+    row["onset_s"] = np.nan if onset is None else onset * dt
     early = onset is not None and warned is not None and warned <= onset
     row["lead_s"] = (onset - warned) * dt if early else np.nan
     timed = onset is not None and first_tight is not None

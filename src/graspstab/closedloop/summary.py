@@ -195,6 +195,29 @@ def worse_grasps(table: pl.DataFrame) -> pl.DataFrame:
     )
 
 
+def tradeoff_table(
+    table: pl.DataFrame, *, resamples: int = 1000, level: float = 0.95, seed: int = 0
+) -> pl.DataFrame:
+    """Every swept variant (rows whose ``parameter`` is set) beside its policy's defaults: the
+    policy rows of ``summarise_policies`` plus ``base`` (the policy), ``parameter`` ("default"
+    for the defaults) and ``value``; empty without a sweep."""
+    if "parameter" not in table.columns or table.filter(pl.col("parameter") != "").is_empty():
+        return pl.DataFrame()
+    swept = table.filter(pl.col("parameter") != "")
+    meta = swept.select("policy", "parameter", "value").unique("policy", maintain_order=True)
+    bases = list(dict.fromkeys(p.split("@")[0] for p in meta["policy"]))
+    labels = [*bases, *meta["policy"]]
+    pols, _ = summarise_policies(table, labels, resamples=resamples, level=level, seed=seed)
+    info = pl.concat([
+        pl.DataFrame({"policy": bases, "parameter": ["default"] * len(bases),
+                      "value": [float("nan")] * len(bases)}),
+        meta.with_columns(pl.col("value").cast(pl.Float64)),
+    ])  # fmt: skip
+    return pols.join(info, on="policy", how="left", maintain_order="left").with_columns(
+        base=pl.col("policy").str.split("@").list.first()
+    )
+
+
 def default_comparisons(policies: Sequence[str]) -> list[tuple[str, str]]:
     """Each monitor against the proxy, and every policy against no reflex."""
     monitors = [p for p in policies if p not in ("none", "always", "oracle", "proxy")]
@@ -259,23 +282,29 @@ def aggregate_closed_loop(
     out_dir: str,
 ) -> dict[str, Any]:
     """A protocol's per-object closed-loop tables -> policies.parquet, comparisons.parquet,
-    worse.parquet and summary.json (counts, the answer, the worse grasps per policy) in
+    worse.parquet (the policies at their defaults), tradeoff.parquet (the swept variants beside
+    their defaults) and summary.json (counts, the answer, the worse grasps per policy) in
     ``out_dir``."""
-    table = pl.concat([read_parquet(t) for t in tables], how="diagonal_relaxed")
+    every = pl.concat([read_parquet(t) for t in tables], how="diagonal_relaxed")
+    if "parameter" not in every.columns:
+        every = every.with_columns(parameter=pl.lit(""), value=pl.lit(float("nan")))
+    table = every.filter(pl.col("parameter") == "")
     level = float(bootstrap["level"])
+    boot = {
+        "resamples": int(bootstrap["resamples"]),
+        "level": level,
+        "seed": int(bootstrap["seed"]),
+    }
+    tradeoff = tradeoff_table(every, **boot)
     pols, pairs = summarise_policies(
-        table,
-        list(policies),
-        resamples=int(bootstrap["resamples"]),
-        level=level,
-        seed=int(bootstrap["seed"]),
-        compare=default_comparisons(policies),
+        table, list(policies), compare=default_comparisons(policies), **boot
     )
     worse = worse_grasps(table)
     out = Path(out_dir)
     write_parquet(out / "policies.parquet", pols)
     write_parquet(out / "comparisons.parquet", pairs)
     write_parquet(out / "worse.parquet", worse)
+    write_parquet(out / "tradeoff.parquet", tradeoff)
     summary = {
         "protocol": protocol,
         "objects": sorted(table["object"].unique().to_list()),
@@ -283,6 +312,7 @@ def aggregate_closed_loop(
         "unusable": int(table.filter(~pl.col("usable") & (pl.col("policy") == policies[0])).height),
         "bootstrap": dict(bootstrap),
         "worse_by_policy": {p: int((worse["policy"] == p).sum()) for p in policies},
+        "swept": 0 if tradeoff.is_empty() else int((tradeoff["parameter"] != "default").sum()),
         "answer": answer(protocol, pols, pairs, level),
     }
     write_json(out / "summary.json", summary)

@@ -46,6 +46,46 @@ def _num(r: Mapping[str, Any], key: str, fmt: str = "{:.2f}") -> str:
     return fmt.format(v) + span
 
 
+def _figures(protocol: str, name: str, files: Mapping[str, Any]) -> list[str]:
+    out = []
+    for key, what, caption in (
+        ("tradeoff_figure", "trade-off",
+         f"The reflex's trade-off ({name}): drops prevented against false alarms and against "
+         "added normal force, one setting changed at a time; always and the oracle for scale; "
+         "bars: bootstrap intervals over grasps."),
+        ("timeline_figure", "timeline",
+         f"One grasp with and without the reflex ({name}): total normal force, object speed, "
+         "the reflex's target offset; the no-reflex onset, the first warning and the first "
+         "tightened step marked."),
+    ):  # fmt: skip
+        if key in files:
+            out.append(H.image(Path(files[key]), f"closed-loop {what}", caption,
+                               f"closed-loop-{protocol}-{what}"))  # fmt: skip
+    return out
+
+
+def _setting(r: Mapping[str, Any]) -> str:
+    return "default" if r["parameter"] == "default" else f"{r['parameter']} = {r['value']:g}"
+
+
+def _tradeoff_parts(trade: Any, name: str, level: int) -> list[str]:
+    if trade.is_empty():
+        return []
+    rows = [
+        [r["base"], _setting(r), _pct(r, "prevented_share"), _pct(r, "false_alarm_rate"),
+         _pct(r, "drop_rate"), _num(r, "added_normal_mean_n")]
+        for r in trade.iter_rows(named=True)
+    ]  # fmt: skip
+    return [
+        H.table(
+            ["policy", "setting", "drops prevented (%)", "false alarms (%)", "drops (%)",
+             "added normal force, mean [N]"],
+            rows,
+            caption=f"The sweep ({name}), one setting changed at a time; [{level} % CI]",
+        )
+    ]  # fmt: skip
+
+
 def _protocol_parts(protocol: str, files: Mapping[str, Any]) -> list[str]:
     summary = read_json(Path(files["summary"]))
     policies = read_parquet(Path(files["policies"]))
@@ -112,6 +152,9 @@ def _protocol_parts(protocol: str, files: Mapping[str, Any]) -> list[str]:
             caption=f"Paired comparisons over the same grasps ({name}; policy minus against)",
         )
     )
+    parts += _figures(protocol, name, files)
+    if "tradeoff" in files:
+        parts += _tradeoff_parts(read_parquet(Path(files["tradeoff"])), name, level)
     total = worse.height
     listed = worse.head(WORSE_ROWS)
     parts.append(

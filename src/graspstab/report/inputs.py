@@ -108,6 +108,7 @@ def closed_loop_wildcards(
     return {
         "closed_loop_object": {"protocol": protocols, "object": tests},
         "aggregate_closed_loop": {"protocol": protocols},
+        "plot_closed_loop": {"protocol": protocols},
     }
 
 
