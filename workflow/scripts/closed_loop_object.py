@@ -31,7 +31,8 @@ def compute() -> None:
     monitor = dict(sm.params.monitor)
     reflex = ReflexParams(**cl["reflex"])
     sweep = dict(cl["sweep"])
-    swept = [p for p in policies if p.name in sweep.pop("policies")]
+    names_swept = sweep.pop("policies")
+    swept = [p for p in policies if p.name in names_swept]
     variants = sweep_variants(swept, sweep, reflex, int(monitor["debounce"]), float(cl["arm_s"]))
     table, traces = closed_loop_object(
         sm.wildcards.object, Path(sm.input.object_xml).parent, Path(sm.input.hand[0]).parent,
