@@ -185,7 +185,8 @@ def closed_loop_object(
                 best, traces = rank, {(gid, "none"): base_run.traces,
                                       (gid, timeline): runs[timeline][0].traces}  # fmt: skip
         log.info("%s grasp %d (%d/%d): baseline %s; dropped under %s (%.1f s wall)", object_id,
-                 gid, i + 1, grasps.height, "fails" if base.failing else "holds",
+                 gid, i + 1, grasps.height,
+                 "no verdict" if not base.usable else "fails" if base.failing else "holds",
                  ",".join(r["policy"] for r in done if r["dropped"]) or "none",
                  sum(wall.values()))  # fmt: skip
     return pl.DataFrame(rows), traces
