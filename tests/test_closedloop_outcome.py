@@ -202,14 +202,19 @@ def test_a_monitor_that_never_acts_reuses_the_no_reflex_run_and_matches_its_repl
     pl.DataFrame([grasp]).write_parquet(tmp_path / "g.parquet")
     calm, alarmed = Policy("calm", "monitor", Constant(0.1)), Policy("alarmed", "monitor",
                                                                    Constant(0.9))  # fmt: skip
+    twin = Policy("twin", "monitor", Constant(0.8))  # warns on the same frame as alarmed
     reflex = ReflexParams(0.2, 4.0, 0.01)
     table, traces = closed_loop_object(
         "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "g.parquet", params,
-        cfg["labels"], [Policy("none", "none"), calm, alarmed], reflex, keep_traces=True,
+        cfg["labels"], [Policy("none", "none"), calm, alarmed, twin], reflex, keep_traces=True,
     )  # fmt: skip
     rows = {r["policy"]: r for r in table.iter_rows(named=True)}
     assert not rows["calm"]["replayed"] and not rows["calm"]["fired"]
     assert rows["alarmed"]["replayed"] and rows["alarmed"]["fired"]
+    # the same tightening from the same step is the same run: reused, not replayed
+    assert not rows["twin"]["replayed"] and traces[(1, "twin")] is traces[(1, "alarmed")]
+    same = {k for k in rows["twin"] if k not in ("policy", "replayed", "wall_s")}
+    assert all(rows["twin"][k] == pytest.approx(rows["alarmed"][k], nan_ok=True) for k in same)
     # the calm monitor in the loop, replayed for real, gives the same row and traces
     scene = build_replay_scene(built_hand_dir, foam_brick_dir, params)
     closing, upper = actuator_axes(scene, scene.model.nu)
