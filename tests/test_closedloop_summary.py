@@ -9,6 +9,7 @@ import pytest
 
 from graspstab.closedloop.summary import (
     aggregate_closed_loop,
+    answer,
     bootstrap_weights,
     default_comparisons,
     summarise_policies,
@@ -178,3 +179,11 @@ def test_tradeoff_sets_each_variant_beside_its_policys_defaults(tmp_path) -> Non
     # the variant is gru's rows: its figures are gru's, on the same grasps
     assert trade["prevented_share"].to_list() == pytest.approx([0.5, 0.0])
     assert trade["false_alarm_rate"].to_list() == pytest.approx([0.25, 0.25])
+
+
+def test_the_answer_says_when_false_alarms_are_undefined() -> None:
+    t = planted().filter(pl.col("grasp_id") < 8)  # every grasp fails without a reflex
+    pols = ["none", "proxy", "gru"]
+    p, c = summarise_policies(t, pols, resamples=100, compare=default_comparisons(pols))
+    text = answer("creep_free", p, c, 0.95)
+    assert "false alarms undefined: no grasp holds without a reflex" in text and "nan" not in text

@@ -259,11 +259,13 @@ def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: fl
     for m in (m for m in LEARNED if m in rows and (m, "drop_rate") in cmp):
         d, fa = cmp[(m, "drop_rate")], cmp[(m, "false_alarm_rate")]
         says = DROP_VERDICTS.get(d["verdict"], "undefined")
+        alarms = (f"false alarms {100 * fa['diff']:+.1f} points "
+                  f"{_span(fa['lo'], fa['hi'], True)} against it" if np.isfinite(fa["diff"])
+                  else "false alarms undefined: no grasp holds without a reflex")  # fmt: skip
         parts.append(f"{m} drops {_pct(rows[m]['drop_rate'])} against the proxy's "
                      f"{_pct(rows['proxy']['drop_rate'])} ({says}: "
-                     f"{100 * d['diff']:+.1f} points {_span(d['lo'], d['hi'], True)}; false "
-                     f"alarms {100 * fa['diff']:+.1f} points "
-                     f"{_span(fa['lo'], fa['hi'], True)} against it)")  # fmt: skip
+                     f"{100 * d['diff']:+.1f} points {_span(d['lo'], d['hi'], True)}; "
+                     f"{alarms})")  # fmt: skip
     text = head + ": " + ("; ".join(parts) if parts else "no learned monitor was run") + "."
     bounds = {"oracle": "the best any warning can do", "always": "the force-hungry bound"}
     bound = [f"{p} ({why}) prevents {rows[p]['prevented']} of {drops}"
