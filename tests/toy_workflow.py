@@ -54,19 +54,14 @@ CONFIG = [
 ]
 
 
+def snakemake_command(workdir: Path, *args: str) -> list[str]:
+    """The command line of Snakemake on this repository's workflow in ``workdir``."""
+    return [sys.executable, "-m", "snakemake", "-s", str(REPO / "Snakefile"), "-d", str(workdir),
+            *args]  # fmt: skip
+
+
 def snakemake_run(workdir: Path, *args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
-    cmd = [
-        sys.executable,
-        "-m",
-        "snakemake",
-        "-s",
-        str(REPO / "Snakefile"),
-        "-d",
-        str(workdir),
-        "--cores",
-        "2",
-        *args,
-    ]
+    cmd = snakemake_command(workdir, "--cores", "2", *args)
     return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1200)
 
 

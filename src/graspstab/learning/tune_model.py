@@ -3,14 +3,17 @@
 The study lives in an Optuna storage (SQLite beside the results by default, any database URL
 Optuna accepts otherwise) under a name derived from the tuning parameters, so a killed run resumes
 where it stopped (its interrupted trial is marked failed and not counted) and a changed search
-space starts a fresh study instead of mixing trials. The best configuration is written out as a
-complete model spec that the sweep and split studies train with.
+space starts a fresh study instead of mixing trials. Workers sharing a database study count each
+other's live trials (graspstab.learning.storage), so together they finish exactly ``trials``. The
+best configuration is written out as a complete model spec that the sweep and split studies train
+with.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import time
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -26,6 +29,7 @@ from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import code_version, compute_platform, stable_hash
 from graspstab.learning.data import load_window_data
 from graspstab.learning.models import build_model
+from graspstab.learning.storage import hide_password, live_trials, open_storage
 from graspstab.learning.train import TrainSettings, fit
 
 log = logging.getLogger("graspstab.learning")
@@ -33,6 +37,12 @@ log = logging.getLogger("graspstab.learning")
 # Settings that only change the decision threshold, not the ranking the objective measures.
 THRESHOLD_KEYS = ("threshold_rule", "min_recall")
 RECURRENT = ("gru", "lstm")
+# How often a worker whose remaining trials run elsewhere looks whether they have finished [s].
+WAIT_S = 2.0
+
+
+class SurplusTrial(Exception):
+    """A trial started concurrently with another that already makes ``trials``: failed unrun."""
 
 
 def search_space(space: Mapping[str, Any], family: str, objective: str) -> dict[str, Any]:
@@ -115,7 +125,9 @@ def tune_model(
         )  # fmt: skip
         objective = "loss"
     space = search_space(tune["space"], family, objective)
-    params = {"base": dict(base_spec), "train": dict(train), "tune": dict(tune),
+    # Recorded in best.json: the storage URL without its password.
+    shown = {**tune, "storage": hide_password(tune["storage"])} if tune.get("storage") else tune
+    params = {"base": dict(base_spec), "train": dict(train), "tune": dict(shown),
               "dataset": str(dataset_dir), "objective": objective}  # fmt: skip
     # The study's identity: what defines its trials (not how many are wanted, nor where stored),
     # so raising ``trials`` resumes the same study.
@@ -131,9 +143,7 @@ def tune_model(
     # A configured database may be shared by several workers: their interrupted trials are found
     # by heartbeat. The default SQLite file belongs to this job alone, so any RUNNING trial in it
     # was interrupted by a kill and is failed at once.
-    storage: str | optuna.storages.RDBStorage = (
-        optuna.storages.RDBStorage(url, heartbeat_interval=60, grace_period=180) if shared else url
-    )
+    storage = open_storage(url, shared=shared)
     study = optuna.create_study(
         study_name=study_name, storage=storage, sampler=sampler, pruner=pruner,
         direction="maximize", load_if_exists=True,
@@ -143,12 +153,27 @@ def tune_model(
         for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
             study._storage.set_trial_state_values(t._trial_id, optuna.trial.TrialState.FAIL)
             log.info("trial %d was interrupted in an earlier run: marked failed", t.number)
-    finished = len(study.get_trials(deepcopy=False, states=done_states))
-    remaining = max(0, int(tune["trials"]) - finished)
-    log.info("study %s at %s: %d finished trials, running %d more", study_name,
-             url.split("://")[0], finished, remaining)  # fmt: skip
+    target = int(tune["trials"])
+
+    def progress() -> tuple[int, set[int]]:
+        """Finished trials, and the numbers of the live running ones: other workers' (this
+        one runs none when it asks), plus its own inside ``run_trial``."""
+        finished = len(study.get_trials(deepcopy=False, states=done_states))
+        return finished, live_trials(storage, study._study_id)
+
+    finished, live = progress()
+    log.info("study %s at %s: %d finished trials, %d running elsewhere, running %d more",
+             study_name, url.split("://")[0], finished, len(live),
+             max(0, target - finished - len(live)))  # fmt: skip
 
     def run_trial(trial: optuna.Trial) -> float:
+        # Two workers that asked at once may both have started a trial the study needs only one
+        # of: the one numbered later yields, before training.
+        finished, live = progress()
+        if finished + len({n for n in live if n < trial.number}) >= target:
+            study.stop()
+            raise SurplusTrial(f"trial {trial.number} not run: the study already holds {target} "
+                               "finished or live trials")  # fmt: skip
         spec = dict(base_spec)
         spec.update({name: suggest(trial, name, s) for name, s in space.items()})
         settings = TrainSettings.from_config(train, spec)
@@ -169,10 +194,23 @@ def tune_model(
         trial.set_user_attr("epochs_run", len(result.history))
         return value if math.isfinite(value) else -math.inf
 
-    if remaining:
-        # Workers sharing a study stop together once it holds ``trials`` finished trials.
-        stop = optuna.study.MaxTrialsCallback(int(tune["trials"]), states=done_states)
-        study.optimize(run_trial, n_trials=remaining, gc_after_trial=True, callbacks=[stop])
+    def enough(study: optuna.Study, trial: optuna.trial.FrozenTrial) -> None:
+        """Stop once the finished trials and the live ones elsewhere make ``trials``."""
+        finished, live = progress()
+        if finished + len(live) >= target:
+            study.stop()
+
+    # Workers sharing a study stop together once it holds ``trials`` finished trials, counting
+    # each other's live trials, and a worker returns only when those have finished (or died).
+    while True:
+        finished, live = progress()
+        if finished >= target:
+            break
+        if finished + len(live) >= target:
+            time.sleep(WAIT_S)
+            continue
+        study.optimize(run_trial, n_trials=target - finished - len(live), gc_after_trial=True,
+                       callbacks=[enough], catch=(SurplusTrial,))  # fmt: skip
     complete = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
     if not complete:
         raise RuntimeError(f"{family}: no tuning trial completed in study {study_name}")

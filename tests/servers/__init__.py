@@ -1,0 +1,1 @@
+"""Throwaway servers from Debian's packages for the tests marked ``servers``."""
