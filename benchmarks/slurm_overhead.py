@@ -23,15 +23,14 @@ from datetime import datetime
 from pathlib import Path
 
 
-def _stamp(text: str) -> datetime:
-    return datetime.fromisoformat(text)
-
-
 def figures(record: dict) -> dict[str, float]:
     """The run's figures from the test's record (seconds unless named otherwise)."""
     rows = record["sacct"]
     done = [r for r in rows if r["State"] == "COMPLETED"]
-    queued = [(_stamp(r["Start"]) - _stamp(r["Submit"])).total_seconds() for r in done]
+    queued = [
+        (datetime.fromisoformat(r["Start"]) - datetime.fromisoformat(r["Submit"])).total_seconds()
+        for r in done
+    ]
     elapsed = sum(int(r["ElapsedRaw"]) for r in done)
     measured = sum(record["benchmarks"].values())
     return {
