@@ -13,32 +13,10 @@ the docs quote, so no figure in it is typed by hand.
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 from graspstab.report.provenance import stage_times
-
-
-def wall_and_cpu(time_log: Path) -> tuple[float | None, float | None]:
-    """Wall and user + system seconds from ``/usr/bin/time -v`` output (None when absent)."""
-    text = time_log.read_text(errors="replace")
-    wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): ([\d:.]+)", text)
-    user = re.search(r"User time \(seconds\): ([\d.]+)", text)
-    system = re.search(r"System time \(seconds\): ([\d.]+)", text)
-    seconds = None
-    if wall:
-        parts = [float(p) for p in wall.group(1).split(":")]
-        seconds = sum(p * 60**i for i, p in enumerate(reversed(parts)))
-    cpu = float(user.group(1)) + float(system.group(1)) if user and system else None
-    return seconds, cpu
-
-
-def memory_above_idle(mem_log: Path) -> tuple[float, float]:
-    """(idle MB, peak MB above idle) from ``<time> <used MB>`` lines; the first line is idle."""
-    used = [float(line.split()[1]) for line in mem_log.read_text().splitlines() if line.strip()]
-    if not used:
-        raise SystemExit(f"{mem_log}: no '<time> <used MB>' lines")
-    return used[0], max(used) - used[0]
+from graspstab.report.results_page import memory_above_idle, wall_and_cpu
 
 
 def _minutes(seconds: float) -> str:

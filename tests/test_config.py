@@ -294,3 +294,24 @@ def test_non_obj_mesh_is_refused_at_load_time(default_cfg, tmp_path):
         validate_config(bad, SCHEMA)
     msg = str(err.value)
     assert "014_lemon" in msg and "'mesh'" in msg and str(stl) in msg and "OBJ" in msg
+
+
+def test_crossval_kfold_alone_turns_on_its_creep_free_protocol():
+    """`--config crossval=kfold` (README) runs both protocols, so it turns the creep-free benchmark
+    on (config/crossval/kfold.yaml is global); turning it off names both fixes."""
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"crossval": "kfold"}, check_files=False)
+    default = load_config(CONFIG_DIR, SCHEMA, {}, check_files=False)
+    assert cfg["crossval"]["enabled"] and cfg["creep_free"]["enabled"]
+    assert cfg["crossval"]["protocols"] == ["reference", "creep_free"]
+    assert cfg["crossval"]["k"] == default["crossval"]["k"]  # the default option's settings
+    assert {k: v for k, v in cfg["creep_free"].items() if k != "enabled"} == {
+        k: v for k, v in default["creep_free"].items() if k != "enabled"
+    }
+    off = {"crossval": "kfold", "creep_free": {"enabled": "false"}}
+    with pytest.raises(ConfigError) as err:
+        load_config(CONFIG_DIR, SCHEMA, off, check_files=False)
+    assert "creep_free={enabled: true}" in str(err.value)
+    assert "crossval.protocols=[reference]" in str(err.value)
+    alone = {**off, "overrides": ["crossval.protocols=[reference]"]}
+    alone = load_config(CONFIG_DIR, SCHEMA, alone, check_files=False)
+    assert alone["crossval"]["protocols"] == ["reference"] and not alone["creep_free"]["enabled"]

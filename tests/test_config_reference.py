@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import re
 import subprocess
 import sys
@@ -10,8 +11,10 @@ from typing import Any
 
 import pytest
 import yaml
+from hydra import compose, initialize_config_dir
 
 from graspstab.config import load_config
+from graspstab.config.compose import compose_config
 from graspstab.config.reference import COMMAND, NO_DESCRIPTION, render
 from graspstab.config.show import parse_snakemake_config
 
@@ -127,12 +130,110 @@ def test_every_row_is_described_and_timeless(page):
 
 
 def test_profiles_are_listed(page):
-    for profile in ("quick", "study", "thesis"):
-        assert f"### {profile}" in page
     # keys the study profile file sets appear in its table
     study = page.split("### study", 1)[1].split("### thesis", 1)[0]
     assert "| `creep_free.seeds` | `null` | `[42]` |" in study
     assert "| group `energy` | `reference` | `hpen` |" in study
+
+
+# Every group and profile is on the page, and each profile's values are the composed ones.
+
+PROFILES = sorted(p.stem for p in (CONFIG_DIR / "profile").glob("*.yaml"))
+UNSET = "<not set>"
+_ROW = re.compile(r"^\| (group )?`([^`]+)` \| (not set|`[^`]*`) \| (not set|`[^`]*`) \|", re.M)
+_BACK = re.compile(r"(the group choice )?`([^`]+)` \((not set|`[^`]*`)\)")
+
+
+def _section(page: str, heading: str) -> str:
+    return page.split(f"\n{heading}\n", 1)[1].split("\n## ", 1)[0]
+
+
+def test_every_group_and_profile_is_listed(page):
+    row = re.compile(r"^\| `([^`@]+)(?:@[^`]*)?` \| [^|]+ \| ([^|]+) \|", re.M)
+    options = {m[1]: m[2] for m in row.finditer(_section(page, "## Groups"))}
+    for group in sorted(p for p in CONFIG_DIR.iterdir() if p.is_dir()):
+        assert group.name in options, f"group {group.name} has no row in the Groups table"
+        for option in group.glob("*.yaml"):
+            assert f"`{option.stem}`" in options[group.name], (group.name, option.stem)
+    headings = re.findall(r"^### (\w+)", _section(page, "## Profiles"), flags=re.M)
+    assert sorted(headings) == PROFILES
+
+
+@functools.cache
+def _composed(override: str) -> tuple[dict[str, Any], dict[str, str]]:
+    """The resolved configuration (the workflow's compose function) and the group choices."""
+    cfg = compose_config(CONFIG_DIR, [override])
+    with initialize_config_dir(config_dir=str(CONFIG_DIR), version_base="1.3"):
+        hydra_cfg = compose(config_name="config", overrides=[override], return_hydra_config=True)
+    choices = hydra_cfg.hydra.runtime.choices
+    return cfg, {k: v for k, v in choices.items() if not k.startswith("hydra/")}
+
+
+def _value(cell: str) -> Any:
+    return UNSET if cell == "not set" else yaml.safe_load(cell.strip("`"))
+
+
+def _at(tree: Any, path: str) -> Any:
+    for part in path.split("."):
+        if not isinstance(tree, dict) or part not in tree:
+            return UNSET
+        tree = tree[part]
+    return tree
+
+
+def _leaves(tree: dict[str, Any], prefix: str = "") -> list[str]:
+    out = []
+    for key, value in tree.items():
+        deeper = isinstance(value, dict) and value
+        out += _leaves(value, f"{prefix}{key}.") if deeper else [f"{prefix}{key}"]
+    return out
+
+
+@pytest.mark.parametrize("name", PROFILES)
+def test_profile_values_are_the_composed_ones(page, name):
+    """Every value the page states for a profile (its table, and the keys it says the profile
+    leaves at their group defaults) is what `profile=<name>` composes to, its defaults list
+    (another profile, group overrides) applied; every key that differs from the groups' defaults
+    is stated, or summed up under its package ("N keys under `objects`")."""
+    parts = re.split(r"^### (\w+).*$", _section(page, "## Profiles"), flags=re.M)
+    section = dict(zip(parts[1::2], parts[2::2], strict=True))[name]
+    cfg, choices = _composed(f"profile={name}")
+    base, base_choices = _composed("~profile")
+    wrong, keys, groups = [], set(), set()
+    for group, key, default, value in _ROW.findall(section):
+        (groups if group else keys).add(key)
+        want, want_default = (
+            (choices.get(key, UNSET), base_choices.get(key, UNSET))
+            if group
+            else (_at(cfg, key), _at(base, key))
+        )
+        if _value(value) != want:
+            wrong.append(f"{key}: the page says {value}, {name} composes to {want!r}")
+        if _value(default) != want_default:
+            wrong.append(f"{key}: the page's group default is {default}, not {want_default!r}")
+    back = re.search(r"^Keys the \w+ profile sets and \w+ leaves at their group defaults.*$",
+                     section, flags=re.M)  # fmt: skip
+    for group, key, value in _BACK.findall(back[0] if back else ""):
+        want = choices.get(key, UNSET) if group else _at(cfg, key)
+        if _value(value) != want:
+            wrong.append(f"{key}: the page says {name} leaves it at {value}, not {want!r}")
+    assert not wrong, f"profile {name} on docs/configuration.md: {wrong}; run `{COMMAND}`"
+
+    covered = keys | set(re.findall(r"keys under `([^`]+)`", section))
+    unstated = [
+        path
+        for path in dict.fromkeys(_leaves(cfg) + _leaves(base))
+        if _at(cfg, path) != _at(base, path)
+        and not any(
+            f"{path}.".startswith(f"{k}.") or k.startswith(f"{path}.") for k in covered
+        )  # fmt: skip
+    ]
+    changed = [g for g, v in choices.items() if v != base_choices.get(g) and g != "profile"]
+    unstated += [g for g in changed if g not in groups]
+    assert not unstated, (
+        f"profile {name} changes keys docs/configuration.md does not state: {unstated}; "
+        f"run `{COMMAND}`"
+    )
 
 
 # `KEY=VALUE` parsing: snakemake's own parser, and the fallback restating it.

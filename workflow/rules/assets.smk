@@ -15,8 +15,6 @@ rule fetch_ycb_object:
         url=lambda wc: config["assets"]["ycb_url"],  # a template: keep {id} unexpanded
         sha256=lambda wc: object_entry(wc).get("sha256"),
         mesh_override=lambda wc: object_entry(wc).get("mesh"),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=500,
@@ -39,8 +37,6 @@ rule fetch_hand_description:
         local_dir=config["assets"]["hand_dir"],
         url=lambda wc: config["assets"]["hand_url"],  # a template: keep {commit} unexpanded
         commit=config["assets"]["hand_commit"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=500,

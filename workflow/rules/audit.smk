@@ -15,8 +15,6 @@ rule label_input_set:
         **{Path(n).stem: f"results/datasets/inputs/{{inputs}}/{n}" for n in DATASET_FILES},
     params:
         trace_keys=replay_keys(),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=4000,
@@ -38,8 +36,6 @@ rule train_input_model:
         spec=lambda wc: config["model"][wc.model],
         train=config["train"],
         extra=lambda wc: {"input_set": wc.inputs},
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -61,8 +57,6 @@ rule aggregate_inputs:
     params:
         input_sets=[s for s, _ in audit_runs()],
         out_dir=lambda wc, output: str(Path(output[0]).parent),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,

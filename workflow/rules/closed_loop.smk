@@ -78,8 +78,6 @@ rule closed_loop_object:
         timeline=lambda wc: timeline_policy(wc.protocol),
         monitor=config["monitor"],
         threshold=config["train"]["threshold"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -104,8 +102,6 @@ rule aggregate_closed_loop:
     params:
         policies=lambda wc: closed_loop_policies(wc.protocol),
         bootstrap=CL["bootstrap"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,
@@ -133,8 +129,6 @@ rule plot_closed_loop:
         v_slip=config["labels"]["v_slip"],
         dt=config["replay"]["timestep"],
         dpi=config["report"]["figure_dpi"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,

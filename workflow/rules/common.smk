@@ -23,9 +23,6 @@ except ConfigError as exc:
 config.clear()
 config.update(_resolved)
 
-# One conda environment for every rule (snakemake --sdm conda); path relative to workflow/rules/.
-CONDA_ENV = "../../envs/graspstab.yaml"
-
 
 wildcard_constraints:
     object=r"[0-9]{3}(-[a-z])?_[a-z0-9_]+",

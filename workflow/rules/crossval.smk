@@ -85,8 +85,6 @@ rule train_fold_model:
         assignment=lambda wc: fold_assignments()[int(wc.fold)],
         features=lambda wc: crossval_features(wc.variant),
         extra=lambda wc: {"fold": int(wc.fold), "variant": wc.variant},
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -117,8 +115,6 @@ rule aggregate_crossval:
         protocol="reference",
         bootstrap=CV["bootstrap"],
         assignments=lambda wc: fold_assignments(),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -139,8 +135,6 @@ rule plot_crossval:
         "results/figures/crossval/per_object.png",
     params:
         dpi=config["report"]["figure_dpi"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

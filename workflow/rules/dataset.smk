@@ -12,8 +12,6 @@ rule label_windows:
         **{Path(n).stem: f"results/datasets/baseline/{n}" for n in DATASET_FILES},
     params:
         dataset=dataset_params(config["labels"]["window_s"]),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=4000,
@@ -34,8 +32,6 @@ rule label_sweep_reference:
         **{Path(n).stem: f"results/datasets/sweep/reference/{n}" for n in DATASET_FILES},
     params:
         dataset=dataset_params(max(config["sweep"]["windows_s"])),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=4000,
@@ -57,8 +53,6 @@ rule trim_sweep_window:
         dt=config["replay"]["timestep"],
     wildcard_constraints:
         ms="[0-9]+",
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=4000,
@@ -82,8 +76,6 @@ rule plot_replay:
     params:
         timestep=config["replay"]["timestep"],
         labels=config["labels"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -106,8 +98,6 @@ rule plot_window:
     params:
         labels=config["labels"],
         dt=config["replay"]["timestep"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -132,8 +122,6 @@ rule plot_unstable_speeds:
         contact=config["replay"]["contact"],
         labels=config["labels"],
         dt=config["replay"]["timestep"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

@@ -18,8 +18,6 @@ rule build_hand:
         meshes=directory("results/hand/meshes"),
     params:
         hand=config["hand"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -38,8 +36,6 @@ rule plot_hand:
     output:
         candidates="results/figures/hand_candidates.png",
         capsules="results/figures/hand_capsules.png",
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

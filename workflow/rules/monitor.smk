@@ -15,8 +15,6 @@ rule export_monitor:
         **{k: f"results/monitor/export/baseline_{{model}}/{v}" for k, v in EXPORT_FILES.items()},
     params:
         onnx_exporter=config["monitor"]["onnx_exporter"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -40,8 +38,6 @@ rule export_pick:
         **{k: f"results/monitor/export/pick/{v}" for k, v in EXPORT_FILES.items()},
     params:
         onnx_exporter=config["monitor"]["onnx_exporter"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -71,8 +67,6 @@ rule evaluate_monitor:
         dt=config["replay"]["timestep"],
         monitor=config["monitor"],
         threshold=config["train"]["threshold"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -93,8 +87,6 @@ rule plot_monitor:
         timeline="results/figures/monitor/timeline.png",
     params:
         dpi=config["report"]["figure_dpi"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,

@@ -13,8 +13,6 @@ rule preprocess_object:
         preprocess=config["preprocess"],
         mass=lambda wc: object_entry(wc)["mass"],
         rotation_deg=lambda wc: object_entry(wc).get("rotation_deg"),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -33,8 +31,6 @@ rule plot_objects:
         parts=object_outputs("convex_parts.npz"),
     output:
         "results/figures/objects.png",
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

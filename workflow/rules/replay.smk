@@ -11,8 +11,6 @@ rule replay_grasps:
         summary="results/replay/{object}/replays_{shard}.parquet",
     params:
         replay=replay_params(config["replay"]),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,

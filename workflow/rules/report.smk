@@ -16,9 +16,9 @@ from graspstab.report.inputs import benchmark_inputs, benchmark_wildcards, neste
 # nested Snakemake only prints graphs (it runs nothing), so --nolock is safe while this run holds
 # the lock, and --forceall makes it list every job, done or not. It gets this run's --config
 # overrides (common.smk keeps them as _raw_overrides), so it builds this run's DAG, and runs on the
-# interpreter running this workflow (sys.executable), the one sure to have this Snakemake, also
-# under --sdm conda. Moving the checkout changes these paths and so reruns rulegraph and report
-# (seconds), no more. The rule files are inputs: the graph is remade whenever one changes.
+# interpreter running this workflow (sys.executable), the one sure to have this Snakemake. Moving
+# the checkout changes these paths and so reruns rulegraph and report (seconds), no more. The rule
+# files are inputs: the graph is remade whenever one changes.
 NESTED_SNAKEMAKE = (
     f"{shlex.quote(sys.executable)} -m snakemake -s {shlex.quote(workflow.main_snakefile)} "
     "--nolock --forceall"
@@ -45,8 +45,6 @@ rule rulegraph:
         # a function: Snakemake would expand braces in a plain string param (e.g. "{model}" in a
         # tune.storage URL) as wildcards
         config=lambda wc: nested_config_args(_raw_overrides),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,
@@ -112,8 +110,6 @@ rule report:
         "results/report.html",
     params:
         config=config,
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,

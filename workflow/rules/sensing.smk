@@ -23,8 +23,6 @@ rule train_augmented_model:
             "dt": config["replay"]["timestep"],
         },
         extra=lambda wc: {"training": training_label(wc.mode)},
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -54,8 +52,6 @@ rule evaluate_sensor_robustness:
         sensing=config["sensing"],
         dt=config["replay"]["timestep"],
         seed=config["seed"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -76,8 +72,6 @@ rule plot_sensor_robustness:
         "results/figures/sensing/robustness.png",
     params:
         dpi=config["report"]["figure_dpi"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,

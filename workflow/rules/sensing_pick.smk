@@ -19,8 +19,6 @@ rule evaluate_pick_robustness:
         sensing=config["sensing"],
         dt=config["replay"]["timestep"],
         seed=config["seed"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

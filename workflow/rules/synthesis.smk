@@ -13,8 +13,6 @@ rule anneal_grasps:
     params:
         synthesis=synthesis_params(),
         seed=config["seed"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -32,8 +30,6 @@ rule summarise_grasps:
         shard_tables,
     output:
         "results/grasps/{object}/summary.json",
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,
@@ -58,8 +54,6 @@ rule plot_grasps:
     params:
         pregrasp=config["synthesis"]["pregrasp"],
         seed=config["seed"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

@@ -23,8 +23,6 @@ rule train_model:
     params:
         spec=lambda wc: config["model"][wc.model],
         train=config["train"],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -48,8 +46,6 @@ rule tune_model:
         train=config["train"],
         tune=config["tune"],
         default_storage=lambda wc: f"results/tune/{wc.model}/study.sqlite",
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -72,8 +68,6 @@ rule train_sweep_model:
         pooling=config["sweep"]["recurrent_pooling"],
         train=config["train"],
         extra=lambda wc: {"window_s": int(wc.ms) / 1000},
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -98,8 +92,6 @@ rule train_split_model:
         train=config["train"],
         assignment=lambda wc: assignments()[int(wc.k)],
         extra=lambda wc: {"assignment_index": int(wc.k)},
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=3000,
@@ -123,8 +115,6 @@ rule aggregate_baseline:
         overview="results/studies/baseline/summary.json",
     params:
         out_dir=lambda wc, output: str(Path(output[0]).parent),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,
@@ -152,8 +142,6 @@ rule measure_latency:
     params:
         run_keys=LATENCY_KEYS,
         latency=config["latency"],
-    conda:
-        CONDA_ENV
     threads: config["latency"]["threads"]
     resources:
         mem_mb=1000,
@@ -177,8 +165,6 @@ rule aggregate_sweep:
         overview="results/studies/sweep/summary.json",
     params:
         out_dir=lambda wc, output: str(Path(output[0]).parent),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,
@@ -200,8 +186,6 @@ rule aggregate_splits:
     params:
         out_dir=lambda wc, output: str(Path(output[0]).parent),
         assignments=lambda wc: assignments(),
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=1000,
@@ -221,8 +205,6 @@ rule evaluate_proxy:
         normalisation=rules.label_windows.output.normalisation,
     output:
         "results/studies/proxy.json",
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,
@@ -276,8 +258,6 @@ rule plot_learning:
     params:
         dpi=config["report"]["figure_dpi"],
         first_seed=config["train"]["seeds"][0],
-    conda:
-        CONDA_ENV
     threads: 1
     resources:
         mem_mb=2000,

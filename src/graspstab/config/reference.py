@@ -1,18 +1,20 @@
 """The configuration reference page (docs/configuration.md), generated from config/ and the schema.
 
 Every key of the composed default configuration (the quick profile) gets a row: its type and
-allowed values from the schema, its default, and a description taken from the comment beside it
-in its group's YAML file (else from the same field of another use of a shared schema definition,
-else from the schema's ``description``). Keys the schema allows but the default leaves unset get
-rows too. The group options, their file headers and the keys each profile sets follow the files.
-Nothing is resolved, so the page does not depend on the environment (``${oc.env:...}`` values are
-shown as the variable and its fallback).
+allowed values from the schema, its default, and a description taken from the comment beside it in
+its group's YAML file (else from the same field of another use of a shared schema definition, else
+from the schema's ``description``). Keys the schema allows but the default leaves unset get rows
+too. The group options and their file headers follow the files. Each profile's values are its
+composition (``profile=<name>``, so its ``defaults`` list, another profile or a group option,
+applies as in a run) against the composition without a profile. Nothing is resolved, so the page
+does not depend on the environment (``${oc.env:...}`` values are shown as the variable and its
+fallback).
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +30,9 @@ from graspstab.config.validate import load_schema
 COMMAND = "python -m graspstab.config reference > docs/configuration.md"
 MISSING: Any = object()
 NO_DESCRIPTION = "*No description yet.*"
+# A group option a profile chooses that changes more keys than this (an object set) gets one
+# row saying how many, not a row per key.
+MAX_GROUP_ROWS = 12
 # Keys whose natural places (a comment beside them in config/config.yaml, or a schema description
 # in the schema's assets block) are being edited elsewhere; a comment there takes precedence.
 _ENV = re.compile(r"^\$\{oc\.env:(?P<var>\w+),(?P<default>[^}]*)\}$")
@@ -314,7 +319,8 @@ class Reference:
             raise ConfigError(f"no config.yaml in {self.config_dir}")
         self.schema = Schema(load_schema(schema_path))
         self.default, self.choices = compose_raw(self.config_dir, [])
-        self.base, _ = compose_raw(self.config_dir, ["~profile"])
+        self.base, self.base_choices = compose_raw(self.config_dir, ["~profile"])
+        self._composed: dict[str, tuple[dict[str, Any], dict[str, Any]]] = {}
         self.root_comments = scan_comments(self.config_dir / "config.yaml")
         self.defaults = self._defaults_list()
         self.groups = sorted(p.name for p in self.config_dir.iterdir() if p.is_dir())
@@ -516,16 +522,151 @@ class Reference:
 
     # Profiles.
 
-    def profile(self, name: str) -> dict[str, Any]:
-        """What one profile file sets: its header, group choices, keys and their comments."""
-        path = self.config_dir / "profile" / f"{name}.yaml"
-        data = yaml.safe_load(path.read_text()) or {}
-        choices = []
+    def composed(self, profile: str) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The tree and group choices of ``profile=<profile>``, composed by Hydra (so a
+        profile's defaults list, another profile or a group override, is applied as it runs)."""
+        if profile not in self._composed:
+            self._composed[profile] = compose_raw(self.config_dir, [f"profile={profile}"])
+        return self._composed[profile]
+
+    def profile_file(self, name: str) -> ProfileFile:
+        """What one profile file says: its keys, the profiles and group options it lists."""
+        data = yaml.safe_load((self.config_dir / "profile" / f"{name}.yaml").read_text()) or {}
+        entries: list[str] = []
+        overrides: dict[str, tuple[str, str]] = {}
         for entry in data.pop("defaults", None) or []:
-            if isinstance(entry, dict):
+            if isinstance(entry, str):
+                entries.append(entry.removeprefix("/profile/"))
+            elif isinstance(entry, dict):
                 ((key, option),) = entry.items()
-                choices.append((key, key.removeprefix("override").strip().lstrip("/"), option))
-        return {"data": data, "choices": choices, "comments": self.files[("profile", name)]}
+                group_key = key.removeprefix("override").strip().lstrip("/")
+                overrides[group_key] = (key, option)
+        if "_self_" not in entries:  # Hydra merges a config's own keys last unless told otherwise
+            entries.append("_self_")
+        return ProfileFile(name, data, entries, overrides, self.files[("profile", name)])
+
+    def chain(self, name: str, seen: tuple[str, ...] = ()) -> list[str]:
+        """The profile files ``profile=<name>`` merges, in Hydra's order (a later one wins)."""
+        out: list[str] = []
+        for entry in self.profile_file(name).entries:
+            names = (
+                [name]
+                if entry == "_self_"
+                else self.chain(entry, (*seen, name))
+                if entry in self.options["profile"] and entry not in seen
+                else []
+            )
+            out += [n for n in names if n not in out]
+        return out
+
+    def profile_rows(self, name: str) -> ProfileRows:
+        """Every group choice and key of ``profile=<name>`` that differs from the groups' defaults
+        (composed without a profile) or that one of its profile files sets, each with the file
+        that sets it: the profile, one it builds on, or a group option it chooses."""
+        tree, choices = self.composed(name)
+        files = [self.profile_file(p) for p in reversed(self.chain(name))]  # the winner first
+        rows = ProfileRows(name, [f.name for f in files if f.name != name])
+        places = {p["key"]: p for p in self.placements() if p["group"] != "profile"}
+        changed: dict[str, tuple[str, list[str]]] = {}  # group key -> (package, its keys)
+        for key, place in places.items():
+            option = choices.get(key, place["chosen"])
+            setter = next((f for f in files if key in f.overrides), None)
+            if option == self.base_choices.get(key) and setter is None:
+                continue
+            explicit = key.partition("@")[2] or None
+            package = self.package(place["group"], explicit, option)
+            changed[key] = (
+                package,
+                [package] if package else self._global_keys(place["group"], option),
+            )
+            source = setter.name if setter else ""
+            note = ("profile", source, f"defaults.{setter.overrides[key][0]}") if setter else None
+            rows.groups.append((key, self.base_choices.get(key, MISSING), option, source, note))
+        for f in files:
+            for path in leaves(f.data):
+                if path not in rows.keys:
+                    rows.keys[path] = (f.name, ("profile", f.name, path))
+        base_leaves, tree_leaves = leaves(self.base), leaves(tree)
+        by_group: dict[str, list[str]] = {}
+        for path in dict.fromkeys([*tree_leaves, *base_leaves]):
+            if get(tree, path) == get(self.base, path) or any(
+                f"{path}.".startswith(f"{k}.") or k.startswith(f"{path}.") for k in rows.keys
+            ):
+                continue
+            key = next(
+                (k for k, (_, ks) in changed.items() if any(_under(path, p) for p in ks)), ""
+            )
+            by_group.setdefault(key, []).append(path)
+        for key, paths in by_group.items():
+            if key and len(paths) > MAX_GROUP_ROWS:
+                rows.summed[key] = (changed[key][0] or _common_prefix(paths), len(paths))
+                continue
+            option = choices.get(key, "")
+            group = key.partition("@")[0]
+            for path in paths:
+                inside = (
+                    path.removeprefix(f"{changed[key][0]}.") if key and changed[key][0] else path
+                )
+                note = ("group", f"{group}/{option}", inside) if key else None
+                rows.keys[path] = (f"{key}={option}" if key else "", note)
+        return rows
+
+    def _global_keys(self, group: str, option: str) -> list[str]:
+        """What a ``_global_`` option sets: its own keys, and the packages of the options its
+        defaults list places (``default@crossval``)."""
+        data = yaml.safe_load((self.config_dir / group / f"{option}.yaml").read_text()) or {}
+        out = []
+        for entry in data.pop("defaults", None) or []:
+            name = entry if isinstance(entry, str) else None
+            if name and name != "_self_":
+                name, _, at = name.partition("@")
+                if (group, name) in self.files:
+                    out.append(self.package(group, at or None, name))
+        return [p for p in out if p] + list(leaves(data))
+
+
+def _under(path: str, key: str) -> bool:
+    """``path`` is ``key`` or inside it."""
+    return f"{path}.".startswith(f"{key}.")
+
+
+def _common_prefix(paths: list[str]) -> str:
+    """The longest dotted prefix the paths share."""
+    common = paths[0].split(".")
+    for path in paths[1:]:
+        parts = path.split(".")
+        n = 0
+        while n < min(len(common), len(parts)) and common[n] == parts[n]:
+            n += 1
+        common = common[:n]
+    return ".".join(common)
+
+
+@dataclass
+class ProfileFile:
+    """One profile file: its keys, its defaults list's entries (profiles and ``_self_``, in
+    order) and group overrides (group key -> (the entry's key, option)), its comments."""
+
+    name: str
+    data: dict[str, Any]
+    entries: list[str]
+    overrides: dict[str, tuple[str, str]]
+    comments: YamlComments
+
+
+@dataclass
+class ProfileRows:
+    """A profile's rows: group choices ``(key, group default, option, set by, note source)``,
+    keys (path -> (set by, note source)) and the groups whose many keys are summed up
+    (key -> (package, count)). A note source is ``(kind, file, dotted key)``."""
+
+    name: str
+    builds_on: list[str]
+    groups: list[tuple[str, Any, str, str, tuple[str, str, str] | None]] = field(
+        default_factory=list
+    )
+    keys: dict[str, tuple[str, tuple[str, str, str] | None]] = field(default_factory=dict)
+    summed: dict[str, tuple[str, int]] = field(default_factory=dict)
 
 
 # The page.
@@ -541,53 +682,69 @@ def _profile_section(ref: Reference) -> list[str]:
         "`--config profile=<name>`. A group choice or value given on the command line still wins "
         "over the profile's.",
         "",
+        "Each profile's table is its composition (`--config profile=<name>`) against the groups' "
+        "defaults (the configuration composed without a profile): every group choice and key "
+        "that differs, and every key a profile file sets. *Set by* names the file that sets the "
+        "value: the profile's own, a profile it builds on (its `defaults` list), or a group "
+        "option a profile chooses (`energy=hpen`: the keys of `config/energy/hpen.yaml`).",
+        "",
     ]
-    listed = {p["group"]: p["listed"] for p in ref.placements()}
-    quick_keys: dict[str, Any] = {}
-    quick_choices: list[tuple[str, str, str]] = []
+    default_rows = ref.profile_rows(default_profile)
     for name in [default_profile] + [o for o in ref.options["profile"] if o != default_profile]:
-        info = ref.profile(name)
-        comments = info["comments"].keys
+        info = ref.profile_file(name)
+        rows = default_rows if name == default_profile else ref.profile_rows(name)
+        tree, choices = ref.composed(name)
         default = " (the default)" if name == default_profile else ""
-        out += [f"### {name}{default}", "", text(info["comments"].header), ""]
-        rows = []
-        noted: set[str] = set()
-
-        def note(path: str, comments: dict[str, str] = comments, noted: set[str] = noted) -> str:
-            parts = path.split(".")
-            for i in range(len(parts), 0, -1):
-                key = ".".join(parts[:i])
-                if key in comments and key not in noted:
-                    noted.add(key)
-                    return text(comments[key])
-                if key in comments:
-                    return "(see above)"
-            return ""
-
-        for key, group, option in info["choices"]:
-            rows.append(
+        out += [f"### {name}{default}", "", text(info.comments.header), ""]
+        if rows.builds_on:
+            merged = [
+                "this file" if p == name else f"`config/profile/{p}.yaml`" for p in ref.chain(name)
+            ]
+            others = " and ".join(f"the {p} profile" for p in rows.builds_on[::-1])
+            listed = ", ".join(f"`{e}`" for e in info.entries)
+            out += [
+                f"It builds on {others}: its `defaults` list ({listed}) composes "
+                + ", then ".join(merged)
+                + f", a later file's value winning, so the table holds {others}'s values too "
+                f"(*Set by* `{rows.builds_on[0]}`).",
+                "",
+            ]
+        notes = _Notes(ref)
+        cells = []
+        for key, base, option, source, note in rows.groups:
+            about = notes(note)
+            if key in rows.summed:
+                package, count = rows.summed[key]
+                summary = (
+                    f"{count} keys under `{package}` change with it: see "
+                    f"`config/{key.partition('@')[0]}/{option}.yaml`"
+                )
+                about = _join(about, summary) if about else summary
+            shown = inline(base) if base is not MISSING else "not set"
+            cells.append([f"group `{key}`", shown, f"`{option}`", _by(source), about])
+        for path, (source, note) in rows.keys.items():
+            cells.append(
                 [
-                    f"group `{group}`",
-                    f"`{listed.get(group, '?')}`",
-                    f"`{option}`",
-                    note(f"defaults.{key}"),
+                    f"`{path}`",
+                    inline(get(ref.base, path)),
+                    inline(get(tree, path)),
+                    _by(source),
+                    notes(note),
                 ]
             )
-        composed, _ = compose_raw(ref.config_dir, [f"profile={name}"])
-        keys = leaves(info["data"])
-        for path in keys:
-            rows.append(
-                [f"`{path}`", inline(get(ref.base, path)), inline(get(composed, path)), note(path)]
-            )
-        out += table(["Key", "Group default", f"{name}", "Note"], rows)
+        out += table(["Key", "Group default", f"{name}", "Set by", "Note"], cells)
         if name == default_profile:
-            quick_keys, quick_choices = keys, info["choices"]
             continue
-        back = [p for p in quick_keys if p not in keys]
-        back_groups = [g for _, g, _ in quick_choices if g not in {c[1] for c in info["choices"]}]
+        back_groups = [g[0] for g in default_rows.groups if g[0] not in {h[0] for h in rows.groups}]
+        back = [
+            p
+            for p in default_rows.keys
+            if p not in rows.keys
+            and not any(p.startswith(f"{pkg}.") for pkg, _ in rows.summed.values())
+        ]
         if back or back_groups:
-            items = [f"the group choice `{g}` (`{listed.get(g, '?')}`)" for g in back_groups]
-            items += [f"`{p}` ({inline(get(ref.base, p))})" for p in back]
+            items = [f"the group choice `{g}` (`{choices.get(g, '?')}`)" for g in back_groups]
+            items += [f"`{p}` ({inline(get(tree, p))})" for p in back]
             out += [
                 f"Keys the {default_profile} profile sets and {name} leaves at their group "
                 f"defaults, so they change too when switching from {default_profile}: "
@@ -596,6 +753,35 @@ def _profile_section(ref: Reference) -> list[str]:
                 "",
             ]
     return out
+
+
+def _by(source: str) -> str:
+    return f"`{source}`" if source else ""
+
+
+class _Notes:
+    """The comment beside a key in the file that sets it, once per comment per table (a
+    comment above a block of keys is shown at its first key, then "(see above)")."""
+
+    def __init__(self, ref: Reference):
+        self.ref = ref
+        self.noted: set[tuple[str, str]] = set()
+
+    def __call__(self, source: tuple[str, str, str] | None) -> str:
+        if source is None:
+            return ""
+        kind, file, path = source
+        group, _, option = file.partition("/") if kind == "group" else ("profile", "", file)
+        comments = self.ref.files[(group, option)].keys
+        parts = path.split(".")
+        for i in range(len(parts), 0, -1):
+            key = ".".join(parts[:i])
+            if key in comments and (file, key) not in self.noted:
+                self.noted.add((file, key))
+                return text(comments[key])
+            if key in comments:
+                return "(see above)"
+        return ""
 
 
 def _options(ref: Reference, places: list[dict[str, Any]]) -> list[str]:

@@ -133,7 +133,8 @@ def _check_crossval(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int]) ->
     if "creep_free" in cv["protocols"]:
         if not cfg["creep_free"]["enabled"]:
             _fail("crossval.protocols holds creep_free but creep_free.enabled is false: turn the "
-                  "benchmark on (--config 'creep_free={enabled: true}') or drop the protocol.")
+                  "benchmark on (--config 'creep_free={enabled: true}'; crossval=kfold does) or "
+                  "drop the protocol (--config 'overrides=[\"crossval.protocols=[reference]\"]').")
         if ms_of(cv["window_s"]) not in cf_ms:
             _fail(f"crossval.window_s = {cv['window_s']} s is not among "
                   f"creep_free.sweep_windows_s ({list(cfg['creep_free']['sweep_windows_s'])}): "

@@ -1,0 +1,102 @@
+"""docs/results.md and the README's headline table are exactly what the records under docs/runs/
+give, and a record holds the figures a finished run's report shows, so no documented figure can
+drift from the run that made it."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import shutil
+from pathlib import Path
+
+import pytest
+
+from graspstab.report import results_page as rp
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _copy_docs(tmp_path: Path) -> Path:
+    """README.md, docs/results.md and docs/runs/ in a scratch repository."""
+    (tmp_path / "docs").mkdir()
+    shutil.copy(REPO / "README.md", tmp_path / "README.md")
+    shutil.copy(REPO / "docs" / "results.md", tmp_path / "docs" / "results.md")
+    shutil.copytree(REPO / "docs" / "runs", tmp_path / "docs" / "runs")
+    return tmp_path
+
+
+def test_docs_match_the_records() -> None:
+    assert rp.main(["render", "--check", "--repo", str(REPO)]) == 0, (
+        "docs/results.md or README.md differ from docs/runs/: run "
+        "`python -m graspstab.report.results_page render`"
+    )
+
+
+def test_every_profile_has_a_block() -> None:
+    page = (REPO / "docs" / "results.md").read_text()
+    profiles = {p.stem for p in (REPO / "config" / "profile").glob("*.yaml")}
+    assert profiles == set(rp.PROFILES)
+    for profile in rp.PROFILES:
+        assert f"## {rp.TITLES[profile]}\n" in page
+
+
+def test_a_changed_figure_is_caught(tmp_path: Path) -> None:
+    repo = _copy_docs(tmp_path)
+    quick = repo / "docs" / "runs" / "quick.json"
+    rec = json.loads(quick.read_text())
+    rec["headline"][0][2] = "12.34 ± 0.56 %"
+    quick.write_text(json.dumps(rec))
+    assert rp.main(["render", "--check", "--repo", str(repo)]) == 1
+    assert rp.main(["render", "--repo", str(repo)]) == 0
+    assert "12.34 ± 0.56" in (repo / "README.md").read_text()
+    assert "12.34 ± 0.56" in (repo / "docs" / "results.md").read_text()
+    assert rp.main(["render", "--check", "--repo", str(repo)]) == 0
+
+
+def test_readme_needs_its_markers(tmp_path: Path) -> None:
+    rec = json.loads((REPO / "docs" / "runs" / "quick.json").read_text())
+    with pytest.raises(SystemExit, match="markers"):
+        rp.render_readme("# no table here\n", rec)
+
+
+def test_config_entries_stop_at_the_next_option() -> None:
+    cmd = "snakemake --cores 2 results/report.html --config profile=study 'a={b: 1}' -n"
+    assert rp.config_entries(cmd) == ["profile=study", "a={b: 1}"]
+    assert rp.config_entries("snakemake --config x=1 -- results/report.html") == ["x=1"]
+    assert rp.config_entries("snakemake --cores 2 results/report.html") == []
+
+
+def test_time_and_memory_logs(tmp_path: Path) -> None:
+    log = tmp_path / "snake.log"
+    log.write_text(
+        "128 of 128 steps (100%) done\n"
+        "\tUser time (seconds): 2000.5\n\tSystem time (seconds): 99.5\n"
+        "\tElapsed (wall clock) time (h:mm:ss or m:ss): 1:02:03\n"
+    )
+    assert rp.wall_and_cpu(log) == (3723.0, 2100.0)
+    mem = tmp_path / "mem"
+    mem.write_text("1 800\n3 2000\n5 1500\n")
+    assert rp.memory_above_idle(mem) == (800.0, 1200.0)
+
+
+@pytest.mark.workflow
+def test_record_of_the_toy_run_holds_the_report_figures(run) -> None:
+    workdir, _, config = run
+    command = "snakemake --cores 2 results/report.html " + shlex.join(config)
+    rec = rp.record(workdir, command, repo=REPO)
+    html = (workdir / "results" / "report.html").read_text()
+    # the headline figures are the report's, read from the same summaries
+    for _, _, figure, _, _ in rec["headline"]:
+        assert figure.split(" (")[0] in html, figure
+    assert rec["commit"].split("-")[0] in html
+    # every benchmarked job is counted; both protocols of the toy run are read
+    tsv = list((workdir / "results" / "benchmarks").rglob("*.tsv"))
+    assert rec["cost"]["jobs"] == len(tsv)
+    assert set(rec["protocols"]) == {"reference", "creep_free"}
+    summary = json.loads((workdir / "results/datasets/baseline/summary.json").read_text())
+    test = summary["splits"]["test"]
+    assert rec["protocols"]["reference"]["datasets"]["test"]["unstable"] == test["unstable"]
+    assert rec["scale"]["seeds"] == [42]
+    # and the record renders: its block names the commit and the command
+    block = rp.profile_block(rec)
+    assert rec["commit"][:7] in block and command in block
