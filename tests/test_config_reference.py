@@ -15,7 +15,7 @@ from hydra import compose, initialize_config_dir
 
 from graspstab.config import load_config
 from graspstab.config.compose import compose_config
-from graspstab.config.reference import COMMAND, NO_DESCRIPTION, render
+from graspstab.config.reference import COMMAND, MISSING, NO_DESCRIPTION, get, render
 from graspstab.config.show import parse_snakemake_config
 
 REPO = Path(__file__).resolve().parents[1]
@@ -174,11 +174,8 @@ def _value(cell: str) -> Any:
 
 
 def _at(tree: Any, path: str) -> Any:
-    for part in path.split("."):
-        if not isinstance(tree, dict) or part not in tree:
-            return UNSET
-        tree = tree[part]
-    return tree
+    value = get(tree, path)
+    return UNSET if value is MISSING else value
 
 
 def _leaves(tree: dict[str, Any], prefix: str = "") -> list[str]:

@@ -39,7 +39,14 @@ UNIQUE = [places[0].text for places in PLACES.values()]
 WHERE = {places[0].text: ", ".join(c.where for c in places) for places in PLACES.values()}
 
 
-@pytest.mark.parametrize("text", UNIQUE, ids=[WHERE[t] for t in UNIQUE])
+def _param(text: str):
+    """A command; Snakemake dry runs of whole profiles are slow, so they go with the workflow
+    tests (the fast subset still parses them: test_inline_command_parses covers every page)."""
+    slow = "snakemake" in text.split("&&")[-1].split()[:1] or text.startswith("snakemake")
+    return pytest.param(text, id=WHERE[text], marks=[pytest.mark.workflow] if slow else [])
+
+
+@pytest.mark.parametrize("text", [_param(t) for t in UNIQUE])
 def test_fenced_command_parses_and_would_run(text, tmp_path):
     problems = check_command(text, tmp_path, dict(os.environ))
     assert not problems, f"{WHERE[text]}: {text}\n" + "\n".join(problems)

@@ -76,6 +76,7 @@ def thesis_jobs(tmp_path_factory, bare_env) -> list[dict]:
     return jobs
 
 
+@pytest.mark.workflow  # a dry run of the whole thesis DAG (slow, though it runs no job)
 def test_every_thesis_rule_has_slurm_requests(profile, thesis_jobs):
     rules = {j["rule"] for j in thesis_jobs}
     local = local_rules() & rules
