@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+import graspstab
 from graspstab.report import results_page as rp
 
 REPO = Path(__file__).resolve().parents[1]
@@ -89,6 +90,7 @@ def test_record_of_the_toy_run_holds_the_report_figures(run) -> None:
     for _, _, figure, _, _ in rec["headline"]:
         assert figure.split(" (")[0] in html, figure
     assert rec["commit"].split("-")[0] in html
+    assert rec["version"] == graspstab.__version__  # the checkout's, not the environment's
     # every benchmarked job is counted; both protocols of the toy run are read
     tsv = list((workdir / "results" / "benchmarks").rglob("*.tsv"))
     assert rec["cost"]["jobs"] == len(tsv)

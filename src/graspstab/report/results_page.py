@@ -38,7 +38,7 @@ from graspstab.report.headline import (
     proxy_figure,
     run_scale,
 )
-from graspstab.report.provenance import git_commit, package_versions, stage_times
+from graspstab.report.provenance import git_commit, stage_times
 
 REPO = Path(__file__).resolve().parents[3]
 RUNS_DIR = Path("docs") / "runs"
@@ -197,6 +197,14 @@ def _cost(workdir: Path, time_log: Path | None, mem_log: Path | None) -> dict[st
     return cost
 
 
+def _version(repo: Path) -> str:
+    """The graspstab version of the checkout that ran (its pyproject.toml), not of this one."""
+    import tomllib
+
+    with open(repo / "pyproject.toml", "rb") as fh:
+        return str(tomllib.load(fh)["project"]["version"])
+
+
 def record(
     workdir: Path,
     command: str,
@@ -244,7 +252,7 @@ def record(
         "profile": config.get("profile_name", "?"),
         "commit": git_commit(repo),
         "note": note,
-        "version": package_versions().get("graspstab"),
+        "version": _version(repo),
         "date": datetime.now(UTC).strftime("%Y-%m-%d"),
         "command": command,
         "machine": {
