@@ -102,3 +102,20 @@ def test_record_of_the_toy_run_holds_the_report_figures(run) -> None:
     # and the record renders: its block names the commit and the command
     block = rp.profile_block(rec)
     assert rec["commit"][:7] in block and command in block
+
+
+def test_cost_counts_only_the_jobs_after_since(tmp_path: Path) -> None:
+    """A run that reused an earlier run's outputs in the same folder is costed by its own jobs."""
+    import os
+
+    bench = tmp_path / "results" / "benchmarks"
+    header = "s\th:m:s\tmax_rss\n"
+    for rule, seconds, mtime in (("old_rule", 100.0, 1_000.0), ("new_rule", 7.0, 2_000.0)):
+        (bench / rule).mkdir(parents=True)
+        f = bench / rule / "job.tsv"
+        f.write_text(header + f"{seconds}\t0:00:00\t50\n")
+        os.utime(f, (mtime, mtime))
+    every = rp._cost(tmp_path, None, None)
+    assert every["job_s"] == 107.0 and every["jobs"] == 2
+    later = rp._cost(tmp_path, None, None, since=1_500.0)
+    assert later["job_s"] == 7.0 and [r["rule"] for r in later["rules"]] == ["new_rule"]

@@ -170,9 +170,18 @@ def _summary(path: Path) -> Any:
     return read_json(path) if path.is_file() else None
 
 
-def _cost(workdir: Path, time_log: Path | None, mem_log: Path | None) -> dict[str, Any]:
+def _cost(
+    workdir: Path, time_log: Path | None, mem_log: Path | None, since: float | None = None
+) -> dict[str, Any]:
+    """Job-seconds by rule from the benchmark files (only those written after ``since``, a Unix
+    time, when given: the jobs of a run that reused another's), wall time, memory and disk."""
     root = workdir / "results" / "benchmarks"
-    benchmarks = {d.name: sorted(d.glob("*.tsv")) for d in sorted(root.iterdir()) if d.is_dir()}
+    benchmarks = {
+        d.name: [p for p in sorted(d.glob("*.tsv")) if since is None or p.stat().st_mtime >= since]
+        for d in sorted(root.iterdir())
+        if d.is_dir()
+    }
+    benchmarks = {rule: paths for rule, paths in benchmarks.items() if paths}
     rows = sorted(stage_times(benchmarks), key=lambda r: -(r["job_s"] or 0.0))
     cost: dict[str, Any] = {
         "rules": [
@@ -213,6 +222,7 @@ def record(
     install_s: float | None = None,
     repo: Path | None = None,
     note: str = "",
+    since: float | None = None,
 ) -> dict[str, Any]:
     """The figures of one finished run in ``workdir``, from the summaries its jobs wrote;
     ``repo``: the workflow checkout that ran it (its config tree and commit; default the
@@ -261,7 +271,7 @@ def record(
             "memory_gb": round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30),
         },
         "install_s": install_s,
-        "cost": _cost(workdir, time_log, mem_log),
+        "cost": _cost(workdir, time_log, mem_log, since),
         "scale": scale,
         "headline": headline_rows(studies),
         "protocols": protocols,
@@ -679,6 +689,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     rec.add_argument("--install-s", type=float, help="seconds the install line took")
     rec.add_argument("--repo", type=Path, help="the checkout that ran it (default: workdir)")
     rec.add_argument("--note", default="", help="how it was measured, where that matters")
+    rec.add_argument("--since", type=float,
+                     help="count only jobs whose benchmark file is newer (Unix time): a run "
+                          "that reused an earlier run's outputs in the same folder")  # fmt: skip
     rec.add_argument("--out", type=Path, help="record file (default: stdout)")
     pro = sub.add_parser("projection", help="record the thesis projection of a recorded run")
     pro.add_argument("markdown", type=Path, help="benchmarks/project_thesis.py's output")
@@ -691,7 +704,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.cmd == "record":
         data = record(args.workdir, args.command, args.time_log, args.mem_log, args.install_s,
-                      args.repo, args.note)  # fmt: skip
+                      args.repo, args.note, args.since)  # fmt: skip
         text = json.dumps(data, indent=1, sort_keys=True, default=str) + "\n"
         if args.out is None:
             sys.stdout.write(text)
