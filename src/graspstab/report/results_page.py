@@ -453,7 +453,8 @@ def profile_block(rec: Mapping[str, Any]) -> str:
         "**Headline** (chapter-4 figures beside the reference's):",
         _headline_table(rec),
     ]
-    for name, block in rec["protocols"].items():
+    order = {"reference": 0, "creep_free": 1}
+    for name, block in sorted(rec["protocols"].items(), key=lambda kv: order.get(kv[0], 9)):
         title = PROTOCOLS.get("" if name == "reference" else name, name)
         parts.append(f"**Baseline at the 0.2 s window, {title}** (mean ± std over seeds, %):")
         parts.append(_protocol_table(block))
