@@ -353,6 +353,13 @@ def per_job_obs(measured: Sequence[tuple[Job, float, float]], group_by: str | No
     ]
 
 
+def job_timing(workdir: Path, job) -> dict[str, Any] | None:
+    """The job's timing sidecar (its output ending in ``timing.json``: wall times and rates), or
+    None for a run made before the timings left the data files (they are in its data then)."""
+    path = next((p for p in job.output if p.endswith("timing.json")), None)
+    return json.loads((workdir / path).read_text()) if path and (workdir / path).is_file() else None
+
+
 def anneal_obs(workdir: Path, measured, ref_iterations: int) -> list[Obs]:
     """Candidate grasps x (iterations / reference iterations); the annealing time is the grasps
     over the rate the shard table records, the rest of the job (loading, writing) is overhead."""
@@ -361,22 +368,25 @@ def anneal_obs(workdir: Path, measured, ref_iterations: int) -> list[Obs]:
         meta = parquet_meta(workdir / job.output[0])
         iterations = meta["provenance"]["params"]["annealing"]["iterations"]
         grasps = float(meta["grasps"])
-        compute = min(s, grasps / float(meta["grasps_per_s"]) * job.time_scale)
+        rate = (job_timing(workdir, job) or meta)["grasps_per_s"]
+        compute = min(s, grasps / float(rate) * job.time_scale)
         units = grasps * iterations / ref_iterations
         out.append(Obs(job.wildcards["object"], units, compute, s - compute, rss))
     return out
 
 
 def replay_obs(workdir: Path, measured) -> tuple[list[Obs], dict[str, float], float]:
-    """Simulated seconds per replay job (the summary's ``duration_s``; its ``wall_s`` is the
-    simulation time, the rest overhead); each object's mean simulated seconds per grasp; and the
-    traces' uncompressed bytes per simulated second."""
+    """Simulated seconds per replay job (the summary's ``duration_s``; the grasps' ``wall_s`` in
+    the job's timing sidecar are the simulation time, the rest overhead); each object's mean
+    simulated seconds per grasp; and the traces' uncompressed bytes per simulated second."""
     out, sim, grasps = [], defaultdict(float), defaultdict(int)
     trace_bytes, trace_sim = 0, 0.0
     for job, s, rss in measured:
         table = pl.read_parquet(workdir / next(p for p in job.output if p.endswith(".parquet")))
         units = float(table["duration_s"].sum())
-        compute = min(s, float(table["wall_s"].sum()) * job.time_scale)
+        timing = job_timing(workdir, job)
+        wall = sum(timing["wall_s"]) if timing else float(table["wall_s"].sum())
+        compute = min(s, wall * job.time_scale)
         obj = job.wildcards["object"]
         sim[obj] += units
         grasps[obj] += table.height
@@ -402,13 +412,14 @@ def training_obs(
     stats: dict[str, list[float]] = defaultdict(list)
     amp: dict[str, bool] = {}
     for job, s, rss in measured:
-        metrics = json.loads((workdir / next(p for p in job.output if p.endswith(".json")))
+        metrics = json.loads((workdir / next(p for p in job.output if p.endswith("metrics.json")))
                              .read_text())  # fmt: skip
         sizes = split_sizes(metrics["counts"])
         epochs = int(metrics["epochs_run"])
         family = metrics["family"]
         units = epochs * (sizes["train"] + sizes["val"]) * int(metrics["window_steps"])
-        compute = min(s, float(metrics["train_seconds"]) * job.time_scale)
+        compute = min(s, float((job_timing(workdir, job) or metrics)["train_seconds"])
+                      * job.time_scale)  # fmt: skip
         mixed = bool(metrics.get("placement", {}).get("mixed_precision", False))
         amp[family] = amp.get(family, False) or mixed
         at_window = fp32_steps is None or int(metrics["window_steps"]) == fp32_steps

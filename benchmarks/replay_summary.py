@@ -13,6 +13,7 @@ at most).
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,18 @@ from graspstab.replay.traces import trace_key
 def deep_for(dist: np.ndarray, depth: float, steps: int) -> bool:
     """Whether ``dist`` stays below ``-depth`` for ``steps`` consecutive rows."""
     return earliest_run(np.nan_to_num(dist, nan=0.0) < -depth, steps, len(dist)) is not None
+
+
+def with_wall(table: pl.DataFrame, workdir: Path, obj: str, shard: str) -> pl.DataFrame:
+    """``table`` with each grasp's wall time ``wall_s``, from the replay job's timing sidecar (a
+    run made before the timings left the data files has the column already)."""
+    if "wall_s" in table.columns:
+        return table
+    sidecar = f"results/benchmarks/replay_grasps/{obj}_shard_{shard}.timing.json"
+    timing = json.loads((workdir / sidecar).read_text())
+    walls = pl.DataFrame({"grasp_id": timing["grasp_id"], "wall_s": timing["wall_s"]},
+                         schema_overrides={"grasp_id": table.schema["grasp_id"]})  # fmt: skip
+    return table.join(walls, on="grasp_id", how="left")
 
 
 def main() -> None:
@@ -49,7 +62,7 @@ def main() -> None:
         tables = sorted(obj_dir.glob("replays_*.parquet"))
         if not tables:
             continue
-        deep, creep = 0, []
+        deep, creep, read = 0, [], []
         for table_path in tables:
             table = pl.read_parquet(table_path)
             shard = table_path.stem.split("_")[1]
@@ -60,7 +73,8 @@ def main() -> None:
                     if row["held_at_end"]:
                         vel = traces[trace_key(row["grasp_id"], "velocity")][-round(1.0 / dt) :]
                         creep.append(float(np.median(np.linalg.norm(vel, axis=1))))
-        table = pl.concat([pl.read_parquet(p) for p in tables])
+            read.append(with_wall(table, args.workdir, obj_dir.name, shard))
+        table = pl.concat(read)
         counts = [
             table.height,
             int(table["held_at_end"].sum()),

@@ -39,7 +39,8 @@ FOAM = "061_foam_brick"
 FOAM_SHA = "04a5b79997a874638c3ad71044b1ed50fae16148f9bd29629fe37caab3a71d86"
 OBJ_BYTES = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
 # a user's own mesh must be a hand-held size (5 mm to 0.5 m; tests/test_objects_mesh_file.py)
-OWN_OBJ_BYTES = b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"
+# a closed tetrahedron: the fetch step refuses a flat mesh (a lone triangle)
+OWN_OBJ_BYTES = b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
 STL = "v2/models/assets/right/A.stl"
 
 

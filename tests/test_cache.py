@@ -163,13 +163,13 @@ def test_incomplete_entry_is_ignored_and_concurrent_store_keeps_one(tmp_path):
     src = tmp_path / "f.txt"
     src.write_text("x")
     cache = ResultCache(tmp_path / "cache")
-    # a half-built entry (no entry.json, e.g. a job killed while storing) is not a hit
+    # a half-built entry (no entry.json, e.g. a job killed while storing) is not a hit, and it
+    # is removed so that the job's store puts a complete one in its place
     (cache.entry("r", "k")).mkdir(parents=True)
     (cache.entry("r", "k") / "f").write_text("partial")
     assert cache.restore("r", "k", {"f": tmp_path / "out.txt"}) is False
     assert not (tmp_path / "out.txt").exists()
-    (cache.entry("r", "k") / "f").unlink()
-    cache.entry("r", "k").rmdir()
+    assert not cache.entry("r", "k").exists()
     cache.store("r", "k", {"f": src}, {"rule": "r"})
     src2 = tmp_path / "g.txt"
     src2.write_text("y")
@@ -204,3 +204,108 @@ def test_module_closure_follows_function_level_and_relative_imports():
     assert "replay/figure.py" in module_closure(["labels/figure"])
     with pytest.raises(ValueError, match="no graspstab sub-package"):
         module_closure(["no_such_stage"])
+
+
+def _truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _flip_byte(path: Path) -> None:
+    """One bit of the middle byte changed: the size stays, only the digest can tell."""
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    path.write_bytes(bytes(data))
+
+
+DAMAGE = {"truncated": _truncate, "deleted": Path.unlink, "byte flipped": _flip_byte}
+
+
+@pytest.mark.parametrize("damage", sorted(DAMAGE))
+def test_damaged_entry_is_removed_recomputed_and_stored_whole(tmp_path, caplog, damage):
+    """A truncated, missing or changed file in an entry: the restore refuses it with a warning
+    naming the entry, the job recomputes, and the entry it stores verifies again."""
+    (tmp_path / "in.txt").write_text("grasps")
+    cache_dir = tmp_path / "cache"
+    first = _job(tmp_path, cache_dir)
+    run_cached(first, ["replay"], _Counter(first))
+    (entry,) = [p.parent for p in cache_dir.rglob("entry.json")]
+    DAMAGE[damage](entry / "1")  # the trace file, output 1
+    for p in first.output:
+        Path(p).unlink()
+
+    job = _job(tmp_path, cache_dir)
+    compute = _Counter(job)
+    with caplog.at_level("WARNING", logger="graspstab.common.cache"):
+        assert run_cached(job, ["replay"], compute) is False
+    assert compute.calls == 1
+    assert f"cache entry {entry} is damaged" in caplog.text
+    assert f"stored a whole entry at {entry}" in Path(job.log[0]).read_text()
+    # the stored entry is whole and holds what the job computed
+    cache = ResultCache(cache_dir)
+    cache.verify(entry, ["0", "1"])
+    assert (entry / "1").read_bytes() == Path(job.output.trace).read_bytes()
+    # and a third run restores it, unchanged
+    for p in job.output:
+        Path(p).unlink()
+    again = _job(tmp_path, cache_dir)
+    compute = _Counter(again)
+    assert run_cached(again, ["replay"], compute) is True and compute.calls == 0
+    assert Path(again.output.trace).read_bytes() == (entry / "1").read_bytes()
+    assert not [p for p in entry.parent.iterdir() if p.name.startswith(".")]  # no debris
+
+
+def test_entry_without_checksums_is_not_trusted(tmp_path):
+    """An entry whose record lists no files (one stored before records had checksums, or a
+    record edited by hand) is replaced rather than restored unverified."""
+    src = tmp_path / "f.txt"
+    src.write_text("x")
+    cache = ResultCache(tmp_path / "cache")
+    cache.store("r", "k", {"f": src}, {"rule": "r"})
+    record = json.loads((cache.entry("r", "k") / "entry.json").read_text())
+    assert record["files"]["f"] == {"size": 1, "sha256": content_digest(src)}
+    del record["files"]
+    (cache.entry("r", "k") / "entry.json").write_text(json.dumps(record))
+    assert cache.restore("r", "k", {"f": tmp_path / "out.txt"}) is False
+    assert not cache.entry("r", "k").exists()
+
+
+def test_store_replaces_a_damaged_entry_of_the_same_key(tmp_path):
+    """A half entry (one file lost after it was stored) used to stay forever, since a store
+    returned as soon as the record existed: now the store puts a complete entry in its place."""
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    a.write_text("alpha")
+    b.write_text("beta")
+    cache = ResultCache(tmp_path / "cache")
+    entry = cache.store("r", "k", {"a": a, "b": b}, {"rule": "r"})
+    (entry / "b").unlink()
+    assert cache.store("r", "k", {"a": a, "b": b}, {"rule": "r"}) == entry
+    cache.verify(entry, ["a", "b"])
+    assert (entry / "b").read_text() == "beta"
+
+
+@pytest.mark.parametrize("changed_after_restore", [False, True])
+def test_unreadable_file_names_the_cache_entry_it_came_from(tmp_path, changed_after_restore):
+    """A corrupt input that a restore placed: the advice names the entry, and says whether the
+    entry holds the same bytes (delete it too) or the file changed after the restore."""
+    from graspstab.common.io import cache_origin, unreadable
+
+    src = tmp_path / "t.parquet"
+    src.write_bytes(b"not a parquet file")  # stored as computed: a corrupt entry
+    cache = ResultCache(tmp_path / "cache")
+    entry = cache.store("r", "k", {"t": src}, {"rule": "r"})
+    out = tmp_path / "results" / "t.parquet"
+    assert cache.restore("r", "k", {"t": out})
+    assert cache_origin(out) == entry.resolve()
+    if changed_after_restore:
+        _flip_byte(out)
+    message = str(unreadable(out, ValueError("bad magic")))
+    assert str(entry.resolve()) in message
+    if changed_after_restore:
+        assert "changed since" in message and "restores the entry's verified copy" in message
+    else:
+        assert "holds the same bytes: delete that folder and this file" in message
+    # a file the job wrote itself carries no origin, and gets the plain advice
+    plain = tmp_path / "results" / "own.parquet"
+    plain.write_bytes(b"x")
+    assert cache_origin(plain) is None
+    assert str(unreadable(plain, ValueError("bad"))).endswith("the workflow rebuilds it.")

@@ -3,12 +3,21 @@
 from __future__ import annotations
 
 import copy
+import re
 from pathlib import Path
 
 import pytest
 
 from graspstab.config import ConfigError, compose_config, load_config, split_snakemake_config
-from graspstab.config.validate import validate_config, validate_schema
+from graspstab.config.credentials import mask_text, strip_password, url_password
+from graspstab.config.validate import (
+    ENTRY_KEYS,
+    ID_PATTERN,
+    load_schema,
+    object_entry_schema,
+    validate_config,
+    validate_schema,
+)
 from tests.conftest import CONFIG_DIR, SCHEMA
 
 REFERENCE_SPLIT = {
@@ -161,8 +170,9 @@ def test_env_var_sets_local_asset_dirs(monkeypatch, tmp_path):
 def test_misspelt_key_is_rejected(default_cfg):
     bad = copy.deepcopy(default_cfg)
     bad["replay"]["timestpe"] = 0.001
-    with pytest.raises(ConfigError, match="replay"):
+    with pytest.raises(ConfigError, match="replay") as err:
         validate_schema(bad, SCHEMA)
+    assert "unknown key 'timestpe' (did you mean 'timestep'?)" in str(err.value)
 
 
 def test_unknown_override_key_fails_at_compose():
@@ -172,6 +182,33 @@ def test_unknown_override_key_fails_at_compose():
         _compose({"replay": {"no_such_key": "1"}})
     with pytest.raises(ConfigError):
         _compose({"profile": "no_such_profile"})
+
+
+@pytest.mark.parametrize(
+    ("override", "says", "never"),
+    [
+        ({"tune": {"trails": "3"}},
+         ["unknown key 'trails' (did you mean 'trials'?) at tune", "trials, window_s"], []),
+        ({"objects": {"items": {"014_lemon": {"mas": "0.2"}}}},
+         ["unknown key 'mas' (did you mean 'mass'?) at objects.items.014_lemon",
+          "split, mass, shape, sha256, mesh, rotation_deg"], ["mass missing", "None"]),
+        ({"objects": {"items": {"014_lemon": {"mesh": "/x.obj"}}}},
+         ["objects.items.014_lemon", "has no 'mesh'", "object set file"], ["spelling"]),
+        ({"objects": {"items": {"bad id!": {"mesh": "/x.obj"}}}},
+         ["object 'bad id!'", "not add one", "README \"Add an object\""], []),
+    ],
+)  # fmt: skip
+def test_unknown_override_key_says_which_and_the_closest(override, says, never):
+    """A key the composed tree lacks is named with its dotted place and the closest known key;
+    an object entry's field the set's file lacks, and an object not in the set, say where to add
+    them (an object file), not how to spell them."""
+    with pytest.raises(ConfigError) as err:
+        _compose(override)
+    msg = str(err.value)
+    for text in says:
+        assert text in msg, msg
+    for text in never:
+        assert text not in msg, msg
 
 
 def _with_entry(cfg: dict, object_id: str, **changes) -> dict:
@@ -200,12 +237,53 @@ def test_bad_object_entry_names_entry_and_field(default_cfg, object_id, changes,
     assert object_id in msg and field in msg and "ycb12" in msg
 
 
+def test_misspelt_object_key_is_named_not_missing(default_cfg):
+    """`mas: 0.029` in an object set is an unknown key with its likely meaning, not a missing
+    mass."""
+    bad = _with_entry(default_cfg, "014_lemon", mas=0.029)
+    del bad["objects"]["items"]["014_lemon"]["mass"]
+    with pytest.raises(ConfigError) as err:
+        validate_config(bad, SCHEMA, check_files=False)
+    msg = str(err.value)
+    assert "object '014_lemon' in object set 'ycb12' (config/objects/ycb12.yaml)" in msg
+    assert "unknown key 'mas' (did you mean 'mass'?)" in msg
+    assert "objects.items.014_lemon.mas" in msg
+    assert "field 'mass'" not in msg and "None" not in msg
+
+
+@pytest.mark.parametrize(
+    ("object_id", "suggestion"),
+    [("bad id!", "900_bad_id"), ("My_Cup", "900_my_cup"), ("014_Lemon", "014_lemon"),
+     ("14_lemon", "900_14_lemon")],
+)  # fmt: skip
+def test_bad_object_id_names_the_rule_and_a_fix(default_cfg, object_id, suggestion):
+    """An id outside the rule, even with its own mesh, is named with the field, the rule and a
+    name that follows it (not jsonschema's raw message)."""
+    bad = _with_entry(default_cfg, object_id, mesh="/x.obj")
+    with pytest.raises(ConfigError) as err:
+        validate_config(bad, SCHEMA, check_files=False)
+    msg = str(err.value)
+    assert f"object {object_id!r} in object set 'ycb12'" in msg and "field 'id'" in msg
+    assert f"does not follow the object id rule {ID_PATTERN}" in msg and "three digits" in msg
+    assert f"Rename the entry, e.g. to {suggestion!r}" in msg
+    assert "does not match" not in msg  # not the schema's wording
+    assert re.fullmatch(ID_PATTERN, suggestion)
+
+
+def test_object_rules_are_the_schemas():
+    """The id rule and an entry's keys the messages quote are the schema's."""
+    assert object_entry_schema(load_schema(SCHEMA)) == (ID_PATTERN, ENTRY_KEYS)
+
+
 def test_missing_mesh_in_local_dir_names_entry(default_cfg, tmp_path):
     cfg = copy.deepcopy(default_cfg)
     cfg["assets"]["ycb_dir"] = str(tmp_path)  # empty directory: no meshes
     with pytest.raises(ConfigError) as err:
         validate_config(cfg, SCHEMA)
-    assert "'mesh'" in str(err.value) and str(tmp_path) in str(err.value)
+    msg = str(err.value)
+    # names the folder, where it is set and the fixes, not an entry field the object lacks
+    assert str(tmp_path) in msg and "assets.ycb_dir" in msg and "only_objects" in msg, msg
+    assert "field 'mesh'" not in msg
 
 
 def test_only_objects_must_be_in_set():
@@ -223,8 +301,11 @@ def test_load_config_with_shared_assets(ycb_dir: Path):
 @pytest.mark.parametrize(
     ("override", "named"),
     [
-        ({"labels": {"label_low": "0.7", "label_high": "0.3"}}, ["labels.label_low", "label_high"]),
-        ({"labels": {"label_low": "0.5", "label_high": "0.5"}}, ["labels.label_low"]),
+        ({"labels": {"label_low": "0.7", "label_high": "0.3"}},
+         ["labels.label_low = 0.7 is above labels.label_high = 0.3", "reversed", "Swap"]),
+        ({"labels": {"label_low": "0.5", "label_high": "0.5"}},
+         ["labels.label_low and labels.label_high are both 0.5", "zero width",
+          "lower label_low or raise label_high"]),
         ({"labels": {"v_slip": ".nan"}}, ["labels.v_slip = nan"]),
         ({"labels": {"horizon_s": ".inf"}}, ["labels.horizon_s = inf"]),
         ({"synthesis": {"annealing": {"temperature_start": "1.0", "temperature_end": "1000.0"}}},
@@ -254,6 +335,17 @@ def test_load_config_with_shared_assets(ycb_dir: Path):
          ["replay.deep_stop.seconds = 1.0", "replay.deep_stop.after_s = 3.0", "search_s = 4.0",
           "enabled: false"]),
         ({"replay": {"deep_stop": {"depth": "0.001"}}}, ["replay.deep_stop.depth"]),
+        ({"closed_loop": {"enabled": "true"}},
+         ["closed_loop.protocols = ['reference', 'creep_free'] names creep_free",
+          "creep_free.enabled is false",
+          "set creep_free.enabled=true, or closed_loop.protocols=[reference]",
+          "--config 'creep_free={enabled: true}'",
+          "--config 'closed_loop={enabled: true, protocols: [reference]}'"]),
+        ({"closed_loop": {"enabled": "true", "protocols": ["reference"], "window_s": "0.03"}},
+         ["closed_loop.window_s = 0.03 s is not a sweep window", "sweep.windows_s"]),
+        ({"profile": "closed_loop", "creep_free": {"sweep_windows_s": ["0.05"]},
+          "monitor": {"window_s": "0.05"}},
+         ["closed_loop.window_s = 0.01 s is not among creep_free.sweep_windows_s ([0.05])"]),
     ],
 )  # fmt: skip
 def test_bad_values_fail_at_load_time_naming_the_field(override, named):
@@ -261,6 +353,75 @@ def test_bad_values_fail_at_load_time_naming_the_field(override, named):
         load_config(CONFIG_DIR, SCHEMA, override, check_files=False)
     for text in named:
         assert text in str(err.value)
+    assert "narrow" not in str(err.value)  # the old, backwards advice for an empty label band
+
+
+def test_closed_loop_protocols_with_their_monitors_pass():
+    """The closed loop passes with its benchmark on, or under the reference protocol alone, and
+    a window is not needed by policies without a monitor."""
+    for override in (
+        {"closed_loop": {"enabled": "true"}, "creep_free": {"enabled": "true"}},
+        {"closed_loop": {"enabled": "true", "protocols": ["reference"]}},
+        {"closed_loop": {"enabled": "true", "protocols": ["reference"], "window_s": "0.03",
+                         "policies": ["none", "always", "oracle", "pick"],
+                         "sweep": {"policies": ["pick"]}}},
+    ):  # fmt: skip
+        load_config(CONFIG_DIR, SCHEMA, override, check_files=False)
+
+
+SECRET = "s3cret-Pa55"
+
+
+@pytest.mark.parametrize(
+    ("url", "without"),
+    [
+        (f"postgresql://graspstab:{SECRET}@db.example.org:5432/graspstab",
+         "postgresql://graspstab@db.example.org:5432/graspstab"),
+        (f"postgresql+psycopg2://graspstab:{SECRET}@db/graspstab_{{model}}",
+         "postgresql+psycopg2://graspstab@db/graspstab_{model}"),
+        (f"postgresql://graspstab:p@{SECRET}@db/graspstab", "postgresql://graspstab@db/graspstab"),
+        (f"postgresql://graspstab@db/graspstab?password={SECRET}&sslmode=require",
+         "postgresql://graspstab@db/graspstab?sslmode=require"),
+    ],
+)  # fmt: skip
+def test_storage_url_with_a_password_is_refused_masked(url, without):
+    """A password in tune.storage, from any source, stops the load: the URL is shown masked,
+    with the URL to give instead and where libpq reads the password."""
+    assert url_password(url) is not None and strip_password(url) == without
+    for given in ({"tune": {"storage": url}}, {"overrides": [f"tune.storage='{url}'"]}):
+        with pytest.raises(ConfigError) as err:
+            load_config(CONFIG_DIR, SCHEMA, given, check_files=False)
+        msg = str(err.value)
+        assert SECRET not in msg, msg
+        assert msg.startswith("tune.storage = ") and "***" in msg and "holds a password" in msg
+        assert f"Give the URL without it, {without}, and the password where libpq" in msg
+        assert "~/.pgpass" in msg and "PGPASSWORD" in msg
+
+
+@pytest.mark.parametrize(
+    "url",
+    [None, "postgresql://graspstab@db.example.org:5432/graspstab_{model}",
+     "sqlite:////shared/studies/study@2.sqlite", "postgresql://graspstab:@db/graspstab"],
+)  # fmt: skip
+def test_storage_url_without_a_password_passes(url):
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"tune": {"storage": url}}, check_files=False)
+    assert cfg["tune"]["storage"] == url
+
+
+def test_no_configuration_message_echoes_a_password():
+    """Every ConfigError masks URL passwords, also where a message quotes the --config values."""
+    url = f"postgresql://graspstab:{SECRET}@db/graspstab"
+    with pytest.raises(ConfigError) as err:
+        _compose({"tune": {"storage": url, "trails": "3"}})
+    assert "trails" in str(err.value) and SECRET not in str(err.value)
+    with pytest.raises(ConfigError) as err:  # an unresolvable value: the values are quoted
+        _compose({"tune": {"storage": url}, "seed": "${oc.env:GRASPSTAB_NO_SUCH_VARIABLE}"})
+    assert "'storage': 'postgresql://graspstab:***@db/graspstab'" in str(err.value)
+    assert SECRET not in str(err.value)
+    assert mask_text(f"values {{'storage': '{url}'}}") == (
+        "values {'storage': 'postgresql://graspstab:***@db/graspstab'}"
+    )
+    assert SECRET not in str(ConfigError(f"x {url}?password={SECRET} y"))
 
 
 def test_relation_checks_accept_the_profiles():

@@ -81,7 +81,8 @@ def test_fetch_refuses_bad_user_mesh(tmp_path: Path, case: str, foam_brick_mesh:
     with pytest.raises(AssetError) as err:
         fetch_ycb_object(FOAM, dest, mesh_override=user)
     msg = str(err.value)
-    assert f"object '{FOAM}'" in msg and str(user) in msg and "field 'mesh'" in msg
+    assert f"object '{FOAM}'" in msg and str(user) in msg
+    assert f"config field objects.items.{FOAM}.mesh" in msg
     for words in BAD[case][1]:
         assert words in msg, (words, msg)
     assert not dest.exists() and _files_under(tmp_path / "resources") == []

@@ -57,7 +57,7 @@ def test_meta_is_sane(out_dir: Path) -> None:
     assert np.allclose(tensor, tensor.T) and np.all(np.array(inertia["principal_moments"]) > 0)
     assert len(inertia["quat_wxyz"]) == 4
     assert 1 <= meta["convex_parts"] <= COARSE_COACD["max_convex_hull"]
-    assert set(meta["timings_s"]) >= {"repair", "decompose", "sdf", "total"}
+    assert not any("timing" in k for k in meta)  # run times: in the log, never in the data
     prov = meta["provenance"]
     assert prov["stage"] == "objects" and prov["params"] == PARAMS
     # the source COM is where the mesh was shifted from

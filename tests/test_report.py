@@ -200,7 +200,7 @@ def _replays(path: Path, obj: str, held: list[bool], diverged: list[bool]) -> Pa
         "grasp_id": list(range(n)), "object": [obj] * n, "shard": [0] * n,
         "stop_reason": ["completed" if h else "contact_lost" for h in held],
         "diverged": diverged, "held_at_end": held, "max_penetration": [0.001] * n,
-        "duration_s": [1.0] * n, "wall_s": [0.5] * n,
+        "duration_s": [1.0] * n,
     })  # fmt: skip
     write_parquet(path, frame)
     return path
@@ -464,6 +464,9 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         bench.setdefault("anneal_grasps", []).append(
             _bench(r / "benchmarks" / "anneal_grasps" / f"{obj}_shard_0.tsv", 8.0, "300")
         )
+        bench.setdefault("replay_grasps", []).append(  # the replay table's wall time
+            _bench(r / "benchmarks" / "replay_grasps" / f"{obj}_shard_0.tsv", 37.0 + i, "300")
+        )
     write_json(r / "hand" / "hand.json", {
         "joint_names": ["j0", "j1"], "joint_lower": [-0.1, 0.0], "joint_upper": [1.0, 1.5],
         "fingertips": {"index": "tip_i", "thumb": "tip_t"}, "wrist_joint": "wrist",
@@ -588,6 +591,10 @@ def test_synthetic_report_headline_and_provenance(synthetic_report: Path) -> Non
     assert "<td>55.00 %</td><td>96.27 %</td>" in html
     assert "Stage wall times" in html and "runs now: benchmark after this report" in html
     assert re.search(r"<td>all objects</td><td>12</td><td>12</td><td>0</td><td>8</td>", html)
+    # the replay table: 4 simulated seconds per object, its wall time the replay job's
+    # benchmark (37 s + i): the replay tables hold no wall time (a measurement, not data)
+    for i, obj in enumerate(OBJECTS):
+        assert re.search(rf"<td>{obj}</td>(<td>[^<]*</td>){{6}}<td>4</td><td>{37 + i}</td>", html)
 
 
 def test_synthetic_report_under_the_alternative_protocol_options(

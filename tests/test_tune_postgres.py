@@ -2,6 +2,11 @@
 tests/servers/postgres.py): two concurrent workers on one study, and the message a wrong or
 unreachable ``tune.storage`` gives.
 
+Every URL here is password-free, as the config validator demands (docs/cluster.md): libpq reads
+the password from a pgpass file in this process (``PGPASSFILE``, as ``~/.pgpass`` would be) and
+from ``PGPASSWORD`` in the worker processes, which are given no pgpass file, so both ways the
+documentation names are proven against the server.
+
 Every test here is marked ``servers``: ``-m 'not servers'`` deselects them; nothing skips them
 silently (no server binary is a failure that names the package to install).
 """
@@ -80,6 +85,30 @@ def postgres() -> Iterator[Postgres]:
         yield server
 
 
+@pytest.fixture(scope="module", autouse=True)
+def pgpass(postgres: Postgres, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The test user's password in a pgpass file (mode 600) that libpq reads in this process,
+    with no PGPASSWORD set: the in-process connections prove the pgpass way."""
+    path = tmp_path_factory.mktemp("pgpass") / "pgpass"
+    path.write_text(f"127.0.0.1:{postgres.port}:*:{USER}:{PASSWORD}\n")
+    path.chmod(0o600)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PGPASSFILE", str(path))
+        mp.delenv("PGPASSWORD", raising=False)
+        yield path
+
+
+def _url(postgres: Postgres, database: str = DATABASE) -> str:
+    """The password-free URL of ``database`` for the test user."""
+    return f"postgresql://{USER}@127.0.0.1:{postgres.port}/{database}"
+
+
+def _createdb(postgres: Postgres, name: str) -> str:
+    """Create database ``name``; its password-free URL."""
+    postgres.createdb(name)
+    return _url(postgres, name)
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Planted windows with label noise, so the trials' validation AUPRCs differ."""
@@ -102,9 +131,14 @@ def _args(root: Path, dataset: Path, url: str | None, **extra: Any) -> dict[str,
     }
 
 
-def _start(code: str, args: dict[str, Any], root: Path) -> subprocess.Popen[str]:
+def _start(
+    code: str, args: dict[str, Any], root: Path, password: str = PASSWORD
+) -> subprocess.Popen[str]:
+    """A worker process whose only password is ``PGPASSWORD`` (no pgpass file)."""
     (root / "args.json").write_text(json.dumps(args))
-    env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
+    env = {k: v for k, v in os.environ.items() if k != "PGPASSFILE"}
+    env.update(PYTHONPATH=str(REPO / "src"), PGPASSWORD=password,
+               PGPASSFILE=str(root / "no-pgpass"))  # fmt: skip
     cmd = [sys.executable, "-c", code, str(root / "args.json")]
     return subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)  # fmt: skip
@@ -131,6 +165,29 @@ def _tune_workers(roots: list[Path], dataset: Path, url: str) -> list[dict[str, 
     return [json.loads((r / "best.json").read_text()) for r in roots]
 
 
+def test_libpq_reads_the_password_outside_the_url(
+    postgres: Postgres, pgpass: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The password-free URL connects through the pgpass file, and through PGPASSWORD alone; with
+    neither, the server refuses it (so the other tests' connections really used them)."""
+    import sqlalchemy
+
+    def connect() -> None:
+        engine = sqlalchemy.create_engine(_url(postgres))
+        try:
+            with engine.connect() as conn:
+                assert conn.execute(sqlalchemy.text("select current_user")).scalar() == USER
+        finally:
+            engine.dispose()
+
+    connect()  # the pgpass file
+    monkeypatch.setenv("PGPASSFILE", str(tmp_path / "none"))
+    with pytest.raises(sqlalchemy.exc.OperationalError, match="password"):
+        connect()
+    monkeypatch.setenv("PGPASSWORD", PASSWORD)
+    connect()
+
+
 def _key(params: dict[str, Any]) -> str:
     return json.dumps(params, sort_keys=True)
 
@@ -148,7 +205,8 @@ def test_two_workers_share_one_study(postgres: Postgres, dataset: Path, tmp_path
     seeded per trial (``tune.seed``, one thread), so each set gives the same value whichever
     worker runs it, and both studies must have the same best parameters and value.
     """
-    ref_url = postgres.createdb("graspstab_one")
+    ref_url = _createdb(postgres, "graspstab_one")
+    assert PASSWORD not in ref_url
     [ref_record] = _tune_workers([tmp_path / "one"], dataset, ref_url)
     name = ref_record["study_name"]
     ref = optuna.load_study(study_name=name, storage=ref_url)
@@ -159,7 +217,7 @@ def test_two_workers_share_one_study(postgres: Postgres, dataset: Path, tmp_path
     assert ref_record["best_value"] == ref.best_value == max(values.values())
     assert sorted(values.values()).count(ref.best_value) == 1, "a tie would leave no single best"
 
-    url = postgres.createdb("graspstab_two")
+    url = _createdb(postgres, "graspstab_two")
     study = optuna.create_study(study_name=name, storage=url, direction="maximize")
     for t in sorted(ref_done, key=lambda t: t.number):
         study.enqueue_trial(t.params)
@@ -185,26 +243,31 @@ def test_two_workers_share_one_study(postgres: Postgres, dataset: Path, tmp_path
         assert record["best_value"] == ref_record["best_value"]
         assert record["trials"]["waiting"] == 0
         stored = record["params"]["tune"]["storage"]
-        assert PASSWORD not in json.dumps(record) and stored == hide_password(url)
+        assert PASSWORD not in json.dumps(record) and stored == url
 
 
-def _bad_urls(postgres: Postgres) -> dict[str, tuple[str, str, list[str]]]:
-    """Case: (URL, what the message must say besides the URL, modules to block)."""
+WRONG = "wrong-Pa55"
+
+
+def _bad_urls(postgres: Postgres) -> dict[str, tuple[str, str, list[str], str]]:
+    """Case: (URL, what the message must say besides the URL, modules to block, the worker's
+    PGPASSWORD)."""
     host = f"127.0.0.1:{postgres.port}"
     return {
-        "unreachable": (f"postgresql://{USER}:{PASSWORD}@127.0.0.1:{free_port()}/{DATABASE}",
-                        "Connection refused", []),
-        "bad_password": (postgres.url(password="wrong-Pa55"),
-                         f'password authentication failed for user "{USER}"', []),
-        "no_database": (postgres.url("no_such_db"), 'database "no_such_db" does not exist', []),
-        "malformed_port": (f"postgresql://{USER}:{PASSWORD}@{host}x/{DATABASE}",
-                           "is not a database URL", []),
-        "malformed": (f"postgresql//{USER}:{PASSWORD}@{host}/{DATABASE}",
-                      "is not a database URL", []),
-        "unknown_kind": (f"postgres://{USER}:{PASSWORD}@{host}/{DATABASE}",
-                         "database kind SQLAlchemy does not know", []),
-        "no_driver": (postgres.url(), "'psycopg2', which is not installed: pip install -e "
-                      "'.[cluster]' (psycopg2-binary", ["psycopg2"]),
+        "unreachable": (f"postgresql://{USER}@127.0.0.1:{free_port()}/{DATABASE}",
+                        "Connection refused", [], PASSWORD),
+        "bad_password": (_url(postgres), f'password authentication failed for user "{USER}"',
+                         [], WRONG),
+        "no_database": (_url(postgres, "no_such_db"), 'database "no_such_db" does not exist', [],
+                        PASSWORD),
+        "malformed_port": (f"postgresql://{USER}@{host}x/{DATABASE}", "is not a database URL",
+                           [], PASSWORD),
+        "malformed": (f"postgresql//{USER}@{host}/{DATABASE}", "is not a database URL", [],
+                      PASSWORD),
+        "unknown_kind": (f"postgres://{USER}@{host}/{DATABASE}",
+                         "database kind SQLAlchemy does not know", [], PASSWORD),
+        "no_driver": (_url(postgres), "'psycopg2', which is not installed: pip install -e "
+                      "'.[cluster]' (psycopg2-binary", ["psycopg2"], PASSWORD),
     }  # fmt: skip
 
 
@@ -213,28 +276,33 @@ CASES = ["unreachable", "bad_password", "no_database", "malformed_port", "malfor
 
 
 def test_bad_storage_is_one_message(postgres: Postgres, dataset: Path, tmp_path: Path) -> None:
-    """An unreachable server or a wrong URL (password, database, syntax, kind, driver): the
-    rule's script exits non-zero with one line naming the URL with its password as ***, the
-    driver's reason and the fix, no traceback, and writes no output."""
+    """An unreachable server, a wrong password (PGPASSWORD) or a wrong URL (database, syntax,
+    kind, driver): the rule's script exits non-zero with one line in its log naming the URL, the
+    driver's reason and the fix, no traceback and no password, and writes no output."""
     cases = _bad_urls(postgres)
     assert sorted(cases) == sorted(CASES)
     script = str(REPO / "workflow" / "scripts" / "tune_model.py")
     procs = {}
     for case in CASES:  # all at once: each is an import of torch and one failed connection
-        url, _, block = cases[case]
+        url, _, block, password = cases[case]
         root = tmp_path / case
-        procs[case] = _start(SCRIPT, _args(root, dataset, url, script=script, block=block), root)
+        args = _args(root, dataset, url, script=script, block=block)
+        procs[case] = _start(SCRIPT, args, root, password=password)
     for case, proc in procs.items():
-        url, reason, _ = cases[case]
+        url, reason, _, _ = cases[case]
         out, err = proc.communicate(timeout=STARTUP_S)
         shown = hide_password(url)
-        assert "***" in shown and PASSWORD not in shown
+        assert shown == url and PASSWORD not in url  # nothing to hide: no password in the URL
         assert proc.returncode == 1, (case, err)
-        assert "Traceback" not in err and "Traceback" not in out, (case, err)
-        assert PASSWORD not in err + out, case
-        # stderr: the job's log records, then the message as one line and nothing else
-        [message] = [line for line in err.splitlines() if line and not LOG_RECORD.match(line)]
-        assert err.rstrip().endswith(message), (case, err)
+        log = (tmp_path / case / "tune.log").read_text()
+        assert "Traceback" not in err + out + log, (case, err, log)
+        assert PASSWORD not in err + out + log and WRONG not in err + out + log, case
+        # the message is the last record of the job's log, one line (Snakemake prints a failed
+        # job's log under its error block: graspstab.common.jobs); stderr has the other records
+        assert [line for line in err.splitlines() if line and not LOG_RECORD.match(line)] == []
+        [record] = [line for line in log.splitlines() if "ERROR graspstab.job: " in line]
+        assert log.rstrip().endswith(record) and LOG_RECORD.match(record), (case, log)
+        message = record.split("ERROR graspstab.job: tune_model failed: ", 1)[1]
         assert message.startswith(f"graspstab tuning storage error: tune.storage {shown} "), case
         assert reason in message, (case, message)
         assert not (tmp_path / case / "best.json").exists()
@@ -246,7 +314,7 @@ def test_surplus_trial_yields_unrun(
     """Two workers that ask at the same moment may both start the trial that makes ``trials``:
     the one numbered later sees the other live, is failed before training (no parameters) and
     stops, and the worker then runs a trial only once nothing live remains."""
-    url = postgres.createdb("graspstab_surplus")
+    url = _createdb(postgres, "graspstab_surplus")
     args = _args(tmp_path, dataset, url)
     run = {"dataset_dir": dataset, "base_spec": args["base"], "train": args["train"],
            "out_best": args["best"], "out_trials": args["trials"],

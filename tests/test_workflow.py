@@ -22,6 +22,7 @@ from tests.toy_workflow import (
     TOY_CREEP_FREE,
     TOY_REPLAY,
     TOY_SYNTHESIS,
+    copy_run,
     listed_jobs,
 )
 from tests.toy_workflow import (
@@ -40,19 +41,6 @@ def _with(config: list[str], old: str, new: str) -> list[str]:
     """The config list with one --config item replaced (--config keys do not merge)."""
     assert old in config
     return [new if item == old else item for item in config]
-
-
-def _copy_run(source: Path, dest: Path, *leave_out: str) -> Path:
-    """A copy of the finished run at ``source`` (results, resources, Snakemake's metadata) that a
-    test may run Snakemake in without touching the shared run, less the files and folders named
-    ``leave_out``. Its cache is seeded with every entry of the run's, hard-linked: entries are
-    never written in place (a store renames a new folder in, a restore copies out), so that part
-    costs no disk and what the test stores lands in the copy alone."""
-    cache = ".graspstab-cache"
-    skip = shutil.ignore_patterns(cache, "locks", "incomplete", *leave_out)
-    shutil.copytree(source, dest, symlinks=True, ignore=skip)
-    shutil.copytree(source / cache, dest / cache, symlinks=True, copy_function=os.link)
-    return dest
 
 
 @pytest.mark.workflow
@@ -258,7 +246,7 @@ def test_alternative_protocol_options_run_through_labelling(run, tmp_path):
 
     workdir, env, config = run
     # without the toy run's creep-free, sensing and audit outputs: this run has none of them
-    alt = _copy_run(workdir, tmp_path / "alt", "creep_free", "sensing", "inputs")
+    alt = copy_run(workdir, tmp_path / "alt", "creep_free", "sensing", "inputs")
     alt_config = _with(_with(config, TOY_REPLAY, ALT_REPLAY), TOY_CREEP_FREE,
                        "creep_free={enabled: false}")  # fmt: skip
     alt_config += ["sensing={robustness: false}", "audit={enabled: false}"]
@@ -302,7 +290,7 @@ def test_reference_energy_runs_through_replay(run, tmp_path):
     from graspstab.common.io import read_parquet_metadata
 
     workdir, env, config = run
-    ref = _copy_run(workdir, tmp_path / "ref_energy")
+    ref = copy_run(workdir, tmp_path / "ref_energy")
     replays = _object_replays(ref)
     proc = _snakemake(ref, *replays, *config, "energy=reference", env=env)
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-4000:]
@@ -665,7 +653,7 @@ def test_reverted_change_is_found_by_content(run, tmp_path):
     second run restores its earlier outputs, byte for byte, instead of recomputing. On a copy of
     the toy run (its results, cache and Snakemake metadata), which the other tests never see."""
     shared, env, config = run
-    workdir = _copy_run(shared, tmp_path / "wf")
+    workdir = copy_run(shared, tmp_path / "wf")
     all_jobs = _dry_jobs(workdir, config, env, "--forceall")
     before = _expensive_outputs(workdir, all_jobs)
     changed = _with(config, TOY_SYNTHESIS, TOY_SYNTHESIS.replace("1500", "1400"))

@@ -6,6 +6,7 @@ import fcntl
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -108,3 +109,17 @@ def listed_jobs(text: str) -> list[dict]:
             "threads": int(fields.get("threads", 1)),
         })  # fmt: skip
     return jobs
+
+
+def copy_run(source: Path, dest: Path, *leave_out: str, cache: bool = True) -> Path:
+    """A copy of the finished run at ``source`` (results, resources, Snakemake's metadata) that a
+    test may run Snakemake in without touching the shared run, less the files and folders named
+    ``leave_out``. With ``cache``, the copy's cache is seeded with every entry of the run's,
+    hard-linked (entries are never written in place, so what the test stores lands in the copy
+    alone); without, it has none (for a test that runs with the cache disabled)."""
+    name = ".graspstab-cache"
+    skip = shutil.ignore_patterns(name, "locks", "incomplete", *leave_out)
+    shutil.copytree(source, dest, symlinks=True, ignore=skip)
+    if cache:
+        shutil.copytree(source / name, dest / name, symlinks=True, copy_function=os.link)
+    return dest

@@ -1,6 +1,8 @@
 # Inputs through the workflow: YCB meshes and the ORCA hand description, from a configured local
 # directory or the official archive (checksum-verified). Nothing is fetched at import time.
 
+from graspstab.assets.ycb import user_mesh_sha256
+
 
 rule fetch_ycb_object:
     input:
@@ -15,6 +17,10 @@ rule fetch_ycb_object:
         url=lambda wc: config["assets"]["ycb_url"],  # a template: keep {id} unexpanded
         sha256=lambda wc: object_entry(wc).get("sha256"),
         mesh_override=lambda wc: object_entry(wc).get("mesh"),
+        # the user's mesh's content (a params change reruns the job): an edit in place that kept
+        # the old mtime (cp -p, rsync -a, an unpacked archive) still reruns the copy. Hashed once
+        # per file per workflow load; None for a YCB object (checked against its pinned sha256)
+        mesh_content=lambda wc: user_mesh_sha256(object_entry(wc).get("mesh")),
     threads: 1
     resources:
         mem_mb=500,

@@ -9,12 +9,9 @@ from graspstab.closedloop.closed_loop import protocol_params
 
 CL = config["closed_loop"]
 CL_MS = ms_of(CL["window_s"])
+# The config validator (graspstab.config.relations) has checked that the creep-free protocol has
+# its benchmark and that closed_loop.window_s is a sweep window of each protocol.
 CL_ROOTS = {"reference": "results", "creep_free": CREEP_FREE}
-if "creep_free" in CL["protocols"] and not config["creep_free"]["enabled"]:
-    raise ValueError(
-        "closed_loop.protocols names creep_free, whose monitors the creep-free benchmark trains: "
-        "set creep_free.enabled=true, or closed_loop.protocols=[reference]"
-    )
 
 
 def closed_loop_policies(protocol):

@@ -228,7 +228,9 @@ def sweep_first_seed(model, ms, name, root="results"):
 # Learning studies (train.smk).
 
 MODELS = ["cnn", "gru", "lstm"]
-RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet"}
+# timing.json: the run's training seconds, a sidecar (they differ on every run), not data
+RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet",
+             "timing": "timing.json"}
 
 
 def dataset_inputs(directory):

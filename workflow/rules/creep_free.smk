@@ -14,6 +14,7 @@ use rule replay_grasps as replay_grasps_creep_free with:
     output:
         traces=f"{CF}/replay/{{object}}/traces_{{shard}}.npz",
         summary=f"{CF}/replay/{{object}}/replays_{{shard}}.parquet",
+        timing="results/benchmarks/replay_grasps_creep_free/{object}_shard_{shard}.timing.json",
     params:
         replay=creep_free_replay(),
     log:

@@ -9,6 +9,8 @@ rule replay_grasps:
     output:
         traces="results/replay/{object}/traces_{shard}.npz",
         summary="results/replay/{object}/replays_{shard}.parquet",
+        # run-time measurements (wall times, rate): a sidecar beside the benchmark, not data
+        timing="results/benchmarks/replay_grasps/{object}_shard_{shard}.timing.json",
     params:
         replay=replay_params(config["replay"]),
     threads: 1

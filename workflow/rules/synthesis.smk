@@ -10,6 +10,8 @@ rule anneal_grasps:
         hand=rules.build_hand.output,
     output:
         "results/grasps/{object}/shard_{shard}.parquet",
+        # run-time measurements (wall time, rate): a sidecar beside the benchmark, not data
+        timing="results/benchmarks/anneal_grasps/{object}_shard_{shard}.timing.json",
     params:
         synthesis=synthesis_params(),
         seed=config["seed"],

@@ -1,6 +1,8 @@
 """Snakemake wrapper: the fixed-task benchmark's study tables (graspstab.learning.studies, 4.3)."""
 
+from graspstab.common.jobs import job
 from graspstab.learning import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-studies.aggregate_baseline(list(sm.input.metrics), sm.params.out_dir, log_file=sm.log[0])
+with job(sm):
+    studies.aggregate_baseline(list(sm.input.metrics), sm.params.out_dir, log_file=sm.log[0])

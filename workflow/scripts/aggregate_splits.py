@@ -1,8 +1,10 @@
 """Snakemake wrapper: the split-robustness study tables (graspstab.learning.studies, 4.4)."""
 
+from graspstab.common.jobs import job
 from graspstab.learning import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-studies.aggregate_splits(
-    list(sm.input.metrics), list(sm.params.assignments), sm.params.out_dir, log_file=sm.log[0]
-)
+with job(sm):
+    studies.aggregate_splits(
+        list(sm.input.metrics), list(sm.params.assignments), sm.params.out_dir, log_file=sm.log[0]
+    )

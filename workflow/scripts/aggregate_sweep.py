@@ -1,8 +1,10 @@
 """Snakemake wrapper: the window-length sweep's study tables (graspstab.learning.studies, 4.5)."""
 
+from graspstab.common.jobs import job
 from graspstab.learning import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-studies.aggregate_sweep(
-    list(sm.input.metrics), sm.input.latency, sm.params.out_dir, log_file=sm.log[0]
-)
+with job(sm):
+    studies.aggregate_sweep(
+        list(sm.input.metrics), sm.input.latency, sm.params.out_dir, log_file=sm.log[0]
+    )

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.synthesis.anneal_grasps import anneal_grasps
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -19,8 +20,10 @@ def compute() -> None:
         shard=int(sm.wildcards.shard),
         threads=sm.threads,
         log_file=sm.log[0],
+        timing_path=sm.output.timing,
     )
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("synthesis",), compute)
+with job(sm):
+    run_cached(sm, ("synthesis",), compute)

@@ -9,6 +9,7 @@ from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies
 from graspstab.closedloop.sweep import sweep_variants
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
 
@@ -53,4 +54,5 @@ def compute() -> None:
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("replay", "labels", "learning", "monitor", "closedloop"), compute)
+with job(sm):
+    run_cached(sm, ("replay", "labels", "learning", "monitor", "closedloop"), compute)

@@ -4,6 +4,7 @@ scored grasp by grasp (graspstab.monitor.evaluate_monitor)."""
 from pathlib import Path
 
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.monitor.evaluate_monitor import evaluate_monitor
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -21,4 +22,5 @@ def compute() -> None:
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("monitor",), compute)
+with job(sm):
+    run_cached(sm, ("monitor",), compute)

@@ -3,7 +3,9 @@
 
 from pathlib import Path
 
+from graspstab.common.jobs import job
 from graspstab.learning import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-studies.evaluate_proxy(Path(sm.input.index).parent, sm.output[0], log_file=sm.log[0])
+with job(sm):
+    studies.evaluate_proxy(Path(sm.input.index).parent, sm.output[0], log_file=sm.log[0])

@@ -2,6 +2,7 @@
 (graspstab.monitor.export_models); rule export_pick first maps the sweep's pick to its run."""
 
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.monitor.export_models import export_run, pick_candidate
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -20,4 +21,5 @@ def compute() -> None:
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("monitor",), compute)
+with job(sm):
+    run_cached(sm, ("monitor",), compute)

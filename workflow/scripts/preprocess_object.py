@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.objects.preprocess_object import preprocess_object
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -21,4 +22,5 @@ def compute() -> None:
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("objects",), compute)
+with job(sm):
+    run_cached(sm, ("objects",), compute)

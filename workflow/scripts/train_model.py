@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.learning.specs import study_spec
 from graspstab.learning.train_model import train_model
 
@@ -27,8 +28,12 @@ def compute() -> None:
         ),
         features=p.get("features"),
         log_file=sm.log[0],
+        timing_path=sm.output.timing,
     )
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("learning", "sensing") if "augment" in sm.params.keys() else ("learning",), compute)
+with job(sm):
+    run_cached(
+        sm, ("learning", "sensing") if "augment" in sm.params.keys() else ("learning",), compute
+    )

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from graspstab.common.cache import run_cached
+from graspstab.common.jobs import job
 from graspstab.learning.tune_model import tune_model
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -23,4 +24,5 @@ def compute() -> None:
 
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-run_cached(sm, ("learning",), compute)
+with job(sm):
+    run_cached(sm, ("learning",), compute)

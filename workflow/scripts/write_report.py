@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
 from graspstab.learning.artefacts import StudyArtefacts
 from graspstab.report.write_report import write_report
@@ -27,38 +28,39 @@ def prefixed(prefix: str) -> dict:
     return {n.removeprefix(prefix): f for n, f in sm.input.items() if n.startswith(prefix)}
 
 
-write_report(
-    out_html=Path(sm.output[0]),
-    config=dict(sm.params.config),
-    figures={
-        "objects": Path(sm.input.objects_figure),
-        "hand_candidates": Path(sm.input.hand_candidates),
-        "hand_capsules": Path(sm.input.hand_capsules),
-        "pregrasp": Path(sm.input.pregrasp),
-        "grasp_gallery": Path(sm.input.gallery),
-        "energy_histograms": Path(sm.input.histograms),
-        "replay_trace": Path(sm.input.replay_trace),
-        "window": Path(sm.input.window_figure),
-        "unstable_speeds": Path(sm.input.speeds_figure),
-    },
-    object_meta=[Path(p) for p in sm.input.meta],
-    hand_json=Path(sm.input.hand_json),
-    benchmark_files=benchmarks.get("preprocess_object", []),
-    grasp_summaries=[Path(p) for p in sm.input.grasp_summaries],
-    anneal_benchmarks=benchmarks.get("anneal_grasps", []),
-    replay_summaries=[Path(p) for p in sm.input.replay_summaries],
-    dataset_summary=Path(sm.input.dataset_summary),
-    sweep_summaries=[Path(p) for p in sm.input.sweep_summaries],
-    learning=StudyArtefacts.from_inputs(dict(sm.input.items()), prefix="study_"),
-    learning_figures={Path(p).stem: Path(p) for p in sm.input.learning_figures},
-    rule_benchmarks=benchmarks,
-    rulegraph=Path(sm.input.rulegraph),
-    jobgraph=Path(sm.input.jobgraph),
-    speeds_summary=Path(sm.input.speeds_summary),
-    creep_free=prefixed(CREEP_FREE),
-    monitor=prefixed(MONITOR),
-    sensing=prefixed(SENSING),
-    audit=prefixed(AUDIT),
-    crossval=prefixed(CROSSVAL),
-    closed_loop=prefixed(CLOSED_LOOP),
-)
+with job(sm):
+    write_report(
+        out_html=Path(sm.output[0]),
+        config=dict(sm.params.config),
+        figures={
+            "objects": Path(sm.input.objects_figure),
+            "hand_candidates": Path(sm.input.hand_candidates),
+            "hand_capsules": Path(sm.input.hand_capsules),
+            "pregrasp": Path(sm.input.pregrasp),
+            "grasp_gallery": Path(sm.input.gallery),
+            "energy_histograms": Path(sm.input.histograms),
+            "replay_trace": Path(sm.input.replay_trace),
+            "window": Path(sm.input.window_figure),
+            "unstable_speeds": Path(sm.input.speeds_figure),
+        },
+        object_meta=[Path(p) for p in sm.input.meta],
+        hand_json=Path(sm.input.hand_json),
+        benchmark_files=benchmarks.get("preprocess_object", []),
+        grasp_summaries=[Path(p) for p in sm.input.grasp_summaries],
+        anneal_benchmarks=benchmarks.get("anneal_grasps", []),
+        replay_summaries=[Path(p) for p in sm.input.replay_summaries],
+        dataset_summary=Path(sm.input.dataset_summary),
+        sweep_summaries=[Path(p) for p in sm.input.sweep_summaries],
+        learning=StudyArtefacts.from_inputs(dict(sm.input.items()), prefix="study_"),
+        learning_figures={Path(p).stem: Path(p) for p in sm.input.learning_figures},
+        rule_benchmarks=benchmarks,
+        rulegraph=Path(sm.input.rulegraph),
+        jobgraph=Path(sm.input.jobgraph),
+        speeds_summary=Path(sm.input.speeds_summary),
+        creep_free=prefixed(CREEP_FREE),
+        monitor=prefixed(MONITOR),
+        sensing=prefixed(SENSING),
+        audit=prefixed(AUDIT),
+        crossval=prefixed(CROSSVAL),
+        closed_loop=prefixed(CLOSED_LOOP),
+    )

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import re
 
+from graspstab.common.errors import GraspstabError
+
 YCB_LOCAL_HINT = (
     "To use a local copy instead, set config key assets.ycb_dir (or env var GRASPSTAB_YCB_DIR) "
     "to a directory laid out <dir>/<id>/textured.obj."
@@ -16,7 +18,7 @@ HAND_LOCAL_HINT = (
 _SHA_RE = re.compile(r"^[0-9a-f]{64}$")
 
 
-class AssetError(RuntimeError):
+class AssetError(RuntimeError, GraspstabError):
     """An input file could not be provided; the message names the asset, the cause and the fix."""
 
 

@@ -9,17 +9,29 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from graspstab.common.errors import GraspstabError
+
 #: A hand-held object's largest bounding-box extent lies between these [m]; outside, the mesh is
 #: almost surely in other units (a YCB mesh in millimetres is ~100 "m" across).
 MAX_EXTENT_M = 0.5
 MIN_EXTENT_M = 0.005
+#: A user's mesh thinner than this in its thinnest direction is a sheet, not a solid [m]: thinner
+#: than the signed-distance grid's spacing (preprocess.sdf.spacing, 1.5 mm) and that grid's tested
+#: error near surfaces (< 1 mm), so no grasp energy or contact could treat it as a body, and
+#: preprocessing would fail on it anyway (zero enclosed volume). The thinnest of the 44 YCB meshes
+#: (042_adjustable_wrench) is 14 mm thick by the same measure.
+MIN_THICKNESS_M = 0.001
+#: A closed, consistently wound user mesh enclosing less than this fraction of its bounding box is
+#: surfaces that cancel (a sheet folded onto itself, a doubled face): the closed YCB meshes enclose
+#: 10 % (043_phillips_screwdriver) to 94 % (036_wood_block) of theirs, a solid 1 mm plate ~100 %.
+MIN_VOLUME_FRACTION = 1e-3
 OBJ_ONLY = (
     "graspstab reads Wavefront OBJ meshes only (a text .obj file with 'v' vertex and 'f' face "
     "lines, coordinates in metres)"
 )
 
 
-class MeshFileError(ValueError):
+class MeshFileError(ValueError, GraspstabError):
     """A mesh file that is not a readable OBJ of a hand-held object; the message says which
     object, which file, what is wrong and how to fix it."""
 
@@ -32,13 +44,20 @@ def describe(
     if user_file is None:
         return f"{who}: mesh {path}"
     copy = "" if Path(path) == Path(user_file) else f", read from its copy {path}"
-    return f"{who}: your mesh {user_file} (field 'mesh' of the object{copy})"
+    return f"{who}: your mesh {user_file} ({_mesh_key(object_id)}{copy})"
 
 
-def _fix(user_file: str | os.PathLike[str] | None, verb: str = "fix") -> str:
+def _mesh_key(object_id: str) -> str:
+    """The config field that names the user's mesh file."""
+    if object_id:
+        return f"config field objects.items.{object_id}.mesh"
+    return "field 'mesh' of the object"
+
+
+def _fix(user_file: str | os.PathLike[str] | None, verb: str = "fix", object_id: str = "") -> str:
     """How to fix it: the user's file (field 'mesh'), else the file itself."""
     if user_file is not None:
-        return f"{verb} {user_file}, or set field 'mesh' of the object to another file"
+        return f"{verb} {user_file}, or set {_mesh_key(object_id)} to another file"
     return "replace the file"
 
 
@@ -55,37 +74,36 @@ def read_obj(
     p = Path(path)
     shown = Path(user_file) if user_file is not None else p
     where = describe(object_id, p, user_file)
+    fix = _fix(user_file, object_id=object_id)
     if shown.suffix.lower() != ".obj":
         target = shown.with_suffix(".obj")
         raise MeshFileError(
             f"{where} is not an OBJ file (suffix {shown.suffix or 'none'!r}). {OBJ_ONLY}. Convert "
             f"it, e.g. python -c \"import trimesh; trimesh.load('{shown}').export('{target}')\", "
             "and give the .obj file"
-            + (" in field 'mesh' of the object" if user_file is not None else "")
+            + (f" in {_mesh_key(object_id)}" if user_file is not None else "")
         )
     try:
         size = p.stat().st_size
     except OSError as exc:
-        raise MeshFileError(f"{where} cannot be read ({exc}); {_fix(user_file)}") from exc
+        raise MeshFileError(f"{where} cannot be read ({exc}); {fix}") from exc
     if size == 0:
-        raise MeshFileError(f"{where} is empty (0 bytes). {OBJ_ONLY}; {_fix(user_file)}")
+        raise MeshFileError(f"{where} is empty (0 bytes). {OBJ_ONLY}; {fix}")
     try:
         mesh = trimesh.load(p, file_type="obj", force="mesh", process=False, skip_materials=True)
     except Exception as exc:  # noqa: BLE001 - any parse failure of a bad file, one message
         raise MeshFileError(
             f"{where}: no triangle mesh could be read ({type(exc).__name__}: {exc}). "
-            f"{OBJ_ONLY}; {_fix(user_file)}"
+            f"{OBJ_ONLY}; {fix}"
         ) from exc
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise MeshFileError(
             f"{where}: no triangle mesh could be read (no 'f' face lines found in {size} bytes; "
-            f"is it an OBJ file?). {OBJ_ONLY}; {_fix(user_file)}"
+            f"is it an OBJ file?). {OBJ_ONLY}; {fix}"
         )
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if not np.all(np.isfinite(vertices)):
-        raise MeshFileError(
-            f"{where} has non-finite (nan or inf) vertex coordinates; {_fix(user_file)}"
-        )
+        raise MeshFileError(f"{where} has non-finite (nan or inf) vertex coordinates; {fix}")
     return trimesh.Trimesh(vertices, mesh.faces, process=False)
 
 
@@ -114,14 +132,66 @@ def check_extent(
         raise MeshFileError(
             f"{where} is {largest:.4g} m across (bounding box {box} m), more than the "
             f"{MAX_EXTENT_M:g} m a hand-held object can be: {guess} Mesh coordinates are read as "
-            f"metres; rescale it and {_fix(user_file, 'save it as')}"
+            f"metres; rescale it and {_fix(user_file, 'save it as', object_id)}"
         )
     raise MeshFileError(
         f"{where} is only {largest * 1e3:.3g} mm across (bounding box {box} m), less than the "
         f"{MIN_EXTENT_M * 1e3:g} mm a graspable object needs: is it in metres? Mesh coordinates "
         "are read as metres (a mesh scaled by 0.001 twice, or exported in kilometres, looks like "
-        f"this); rescale it and {_fix(user_file, 'save it as')}"
+        f"this); rescale it and {_fix(user_file, 'save it as', object_id)}"
     )
+
+
+def _widths(mesh: trimesh.Trimesh) -> tuple[float, float]:
+    """(thickness [m], box volume [m^3]) of the mesh's used vertices: thickness is the smallest
+    width along the coordinate axes and the principal axes (exactly 0 for a planar mesh in any
+    orientation); the box is the tighter of the axis-aligned and the principal-axes boxes."""
+    used = np.asarray(mesh.vertices, dtype=np.float64)[np.unique(mesh.faces)]
+    centred = used - used.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred, full_matrices=False)
+    spans = []
+    for frame in (np.eye(3), axes):
+        proj = centred @ frame.T
+        spans.append(proj.max(axis=0) - proj.min(axis=0))
+    return float(min(s.min() for s in spans)), float(min(np.prod(s) for s in spans))
+
+
+def check_solid(
+    mesh: trimesh.Trimesh,
+    object_id: str = "",
+    path: str | os.PathLike[str] = "",
+    user_file: str | os.PathLike[str] | None = None,
+) -> None:
+    """Refuse a flat or zero-volume mesh: thinner than :data:`MIN_THICKNESS_M` in its thinnest
+    direction, or closed (watertight, consistently wound) yet enclosing less than
+    :data:`MIN_VOLUME_FRACTION` of its bounding box. An open mesh is not refused for being open
+    (preprocessing fills simple holes); its volume is not defined, so only its thickness is."""
+    where = describe(object_id, path, user_file)
+    fix = _fix(user_file, "save it as", object_id)
+    box = " x ".join(f"{e:.4g}" for e in np.asarray(mesh.extents, dtype=np.float64))
+    thickness, box_volume = _widths(mesh)
+    if thickness < MIN_THICKNESS_M:
+        raise MeshFileError(
+            f"{where} is flat: {thickness * 1e3:.2f} mm thick in its thinnest direction "
+            f"(bounding box {box} m), less than the {MIN_THICKNESS_M * 1e3:g} mm a solid object "
+            "needs; a single sheet (e.g. a square of two triangles, or a box of zero height) "
+            "encloses no volume, and the simulation needs a closed body with volume. Give it "
+            f"thickness (e.g. Blender's Solidify modifier) and {fix}"
+        )
+    closed = mesh.copy()
+    closed.merge_vertices(merge_tex=True, merge_norm=True)  # OBJ splits vertices at UV seams
+    if not (closed.is_watertight and closed.is_winding_consistent):
+        return
+    with np.errstate(invalid="ignore", divide="ignore"):  # trimesh's centre of mass at volume 0
+        volume = abs(float(closed.volume))
+    if volume < MIN_VOLUME_FRACTION * box_volume:
+        raise MeshFileError(
+            f"{where} encloses almost no volume: {volume:.3g} m^3, "
+            f"{100 * volume / box_volume:.2g} % of its bounding box ({box} m, "
+            f"{thickness * 1e3:.2f} mm thick in its thinnest direction), less than the "
+            f"{100 * MIN_VOLUME_FRACTION:g} % a solid object encloses; its faces cancel (a sheet "
+            f"folded onto itself, or a surface given twice). Make it one closed solid and {fix}"
+        )
 
 
 def load_object_mesh(

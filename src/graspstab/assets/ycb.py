@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -34,14 +36,84 @@ def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
+def missing_local_meshes_message(
+    missing: list[str], local_dir: str | os.PathLike[str], present: Iterable[str] = ()
+) -> str:
+    """Why and how to fix: the local YCB directory lacks the meshes of the objects ``missing``
+    (``present``: the run's objects it does hold, for the only_objects example)."""
+    folder = Path(local_dir)
+    key = "config key assets.ycb_dir or env var GRASPSTAB_YCB_DIR"
+    if not folder.is_dir():
+        return (
+            f"the local YCB directory {folder} ({key}) does not exist; set it to a directory laid "
+            "out <dir>/<id>/textured.obj, or unset it to download the official archive"
+        )
+    kept = list(present)
+    only = f" (e.g. --config 'only_objects=[{','.join(kept)}]', the run's objects it holds)"
+    only = only if kept else ""
+    unset = "or unset assets.ycb_dir / GRASPSTAB_YCB_DIR to download the official archive"
+    if len(missing) == 1:
+        object_id = missing[0]
+        return (
+            f"the local YCB directory {folder} ({key}) lacks the mesh of object '{object_id}': "
+            f"no {folder / object_id / MESH_NAME}. Fix it by one of: put the object's google_16k "
+            f"textured.obj there as <dir>/<id>/textured.obj; leave it out of the run with "
+            f"only_objects{only}; give your own mesh in config field "
+            f"objects.items.{object_id}.mesh; {unset}"
+        )
+    return (
+        f"the local YCB directory {folder} ({key}) lacks the mesh of {len(missing)} objects of "
+        f"this run: no <dir>/<id>/textured.obj for {', '.join(missing)}. Fix it by one of: put "
+        "each object's google_16k textured.obj there as <dir>/<id>/textured.obj; leave them out "
+        f"of the run with only_objects{only}; give your own mesh in config field "
+        f"objects.items.<id>.mesh; {unset}"
+    )
+
+
+def check_local_ycb_dir(
+    items: Mapping[str, Any],
+    local_dir: str | os.PathLike[str] | None,
+    selected: Iterable[str] | None = None,
+) -> None:
+    """At load time: the local YCB directory holds ``<id>/textured.obj`` for every object the run
+    covers (``selected``, the only_objects list; None: all of ``items``) that has no own mesh
+    (field ``mesh``); objects left out are not looked at. :class:`AssetError` naming the objects,
+    the directory, the config key and the fixes."""
+    if local_dir in (None, ""):
+        return
+    chosen = list(items) if selected is None else [o for o in items if o in set(selected)]
+    ycb = [o for o in chosen if not (items[o] or {}).get("mesh")]
+    missing = [o for o in ycb if not (Path(local_dir) / o / MESH_NAME).is_file()]
+    if missing:
+        present = [o for o in chosen if o not in missing]
+        raise AssetError(missing_local_meshes_message(missing, local_dir, present))
+
+
+@functools.cache
+def _content_sha256(path: str) -> str:
+    return file_sha256(path)
+
+
+def user_mesh_sha256(mesh: str | os.PathLike[str] | None) -> str | None:
+    """The sha256 of the user's own mesh file (config field objects.items.<id>.mesh), for the
+    fetch rule's params: Snakemake reruns a job whose params changed, so editing the file in
+    place reruns its copy even where the edit kept the old mtime (``cp -p``, ``rsync -a``, an
+    unpacked archive), which the mtime trigger misses. Hashed once per file per process (one
+    workflow load), cached by resolved path. None without a mesh (a YCB object: its copy or
+    download is checked against its pinned sha256 in the job) or for a missing file (the config
+    check and the job report that)."""
+    if not mesh:
+        return None
+    path = Path(mesh).resolve()
+    if not path.is_file():
+        return None
+    return _content_sha256(str(path))
+
+
 def _stage_local(object_id: str, local_dir: Path, staged: Path) -> dict[str, Any]:
     src = local_dir / object_id / MESH_NAME
     if not src.is_file():
-        raise AssetError(
-            f"YCB object '{object_id}': no mesh at {src}. The local YCB directory (config key "
-            f"assets.ycb_dir / env var GRASPSTAB_YCB_DIR = {local_dir}) must hold "
-            f"<id>/{MESH_NAME}; fix it, or unset it to download the official archive."
-        )
+        raise AssetError(missing_local_meshes_message([object_id], local_dir))
     shutil.copyfile(src, staged)
     return {"method": "local", "source": str(src.resolve()), "local_dir": str(local_dir)}
 
@@ -59,14 +131,16 @@ def _stage_override(object_id: str, mesh: Path, staged: Path) -> dict[str, Any]:
 
 def check_user_mesh(object_id: str, mesh: str | os.PathLike[str]) -> None:
     """Refuse the user's own mesh (field ``mesh``) here, at the first job, unless it is a readable
-    OBJ of a hand-held size: :class:`AssetError` naming the object and the file."""
+    OBJ of a hand-held size with a thickness and a volume (not flat): :class:`AssetError` naming
+    the object, the config field and the file."""
     # imported here: trimesh is not needed to load the workflow (the catalogue imports this package)
-    from graspstab.assets.mesh_file import MeshFileError, load_object_mesh
+    from graspstab.assets.mesh_file import MeshFileError, check_solid, load_object_mesh
 
     try:
-        load_object_mesh(mesh, object_id, user_file=mesh)
+        loaded = load_object_mesh(mesh, object_id, user_file=mesh)
+        check_solid(loaded, object_id, mesh, user_file=mesh)
     except MeshFileError as exc:
-        raise AssetError(str(exc)) from exc
+        raise AssetError(str(exc)) from None  # the same message: one traceback, not two
 
 
 def _stage_download(

@@ -130,7 +130,8 @@ def closed_loop_object(
     (one shard table or several) under every policy (with ``reflex``, ``debounce`` and
     ``arm_s``), then under every ``variants`` entry (``closedloop.sweep``). Returns one row per
     grasp and policy or variant (``closedloop.outcome``'s columns, the variant's parameter and
-    value, the wall time) and, with ``keep_traces``, each run's traces keyed (grasp id, label);
+    value; no wall time: that differs on every run, so only the log has it) and, with
+    ``keep_traces``, each run's traces keyed (grasp id, label);
     without it the traces are dropped after each grasp (an object's runs would otherwise all
     stay in memory). ``timeline`` (a label): the traces returned are instead the no-reflex and
     that label's runs of the one grasp that shows the reflex best (``timeline_rank``)."""
@@ -196,7 +197,7 @@ def closed_loop_object(
                          "parameter": parameter, "value": value,
                          "stop_reason": run.stop_reason, "steps": run.steps,
                          **outcome(run.traces, grip, base, labels, dt),
-                         "replayed": replayed[name], "wall_s": wall[name]})  # fmt: skip
+                         "replayed": replayed[name]})  # fmt: skip
             if keep_traces:
                 traces[(gid, name)] = run.traces
         done = [r for r in rows if r["grasp_id"] == gid]

@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from graspstab.common.io import mark_restored
 from graspstab.common.provenance import (
     files_version,
     installed_versions,
@@ -72,23 +73,69 @@ def job_key(
     return stable_hash(material, length=32), material
 
 
+class EntryDefect(Exception):
+    """Why a stored entry cannot be trusted (a file missing, truncated or changed)."""
+
+
 class ResultCache:
     """A directory of entries ``<root>/<rule>/<key>/``, each holding a job's output files by
-    name plus ``entry.json``. Entries appear atomically (built aside, then renamed)."""
+    name plus ``entry.json``, which records every file's size and SHA-256. Entries appear
+    atomically (built aside, then renamed); a restore verifies them first, and an entry that does
+    not verify is removed, so the job recomputes and stores a complete one."""
 
     def __init__(self, root: str | os.PathLike[str]):
-        self.root = Path(root)
+        self.root = Path(root).absolute()  # messages name entries by a path that works anywhere
+        self.damage: str | None = None  # the last restore's warning, if it refused an entry
 
     def entry(self, rule: str, key: str) -> Path:
         return self.root / rule / key
 
+    def verify(self, entry: Path, names: Iterable[str] | Mapping[str, Any]) -> None:
+        """Raise :class:`EntryDefect` unless ``entry`` holds each of ``names`` with the size and
+        SHA-256 its record gives (and no record means no trust: an entry from before records).
+        ``names`` may map each to the output it restores, which the message then names."""
+        try:
+            record = json.loads((entry / ENTRY_FILE).read_text())
+            files = record["files"]
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise EntryDefect(
+                f"its {ENTRY_FILE} is unreadable or lists no files ({error})"
+            ) from None
+        for name in names:
+            path, want = entry / name, files.get(name) if isinstance(files, dict) else None
+            # the entry's file by name, and the output it stands for when the caller gave them
+            what = f"{name} (for {names[name]})" if isinstance(names, Mapping) else name
+            if want is None:
+                raise EntryDefect(f"its record lists no file {what}")
+            if not path.is_file():
+                raise EntryDefect(f"file {what} is missing")
+            size = path.stat().st_size
+            if size != want.get("size"):
+                raise EntryDefect(f"file {what} has {size} bytes, recorded {want.get('size')}")
+            if content_digest(path) != want.get("sha256"):
+                raise EntryDefect(f"file {what} does not match its recorded SHA-256")
+
+    def discard(self, entry: Path) -> None:
+        """Remove ``entry``: renamed aside first, so no reader ever sees it half deleted."""
+        trash = entry.with_name(f".{entry.name}.{os.getpid()}.discard")
+        try:
+            os.rename(entry, trash)
+        except FileNotFoundError:  # another job discarded it first
+            return
+        shutil.rmtree(trash, ignore_errors=True)
+
     def restore(self, rule: str, key: str, outputs: Mapping[str, str | os.PathLike[str]]) -> bool:
-        """Put a stored entry's files at ``outputs``; False (nothing written) if there is none."""
+        """Put a stored entry's files at ``outputs``; False (nothing written) if there is none or
+        it does not verify (then it is removed, with a warning naming it and what was wrong)."""
         entry = self.entry(rule, key)
-        if not (entry / ENTRY_FILE).is_file():
+        if not entry.is_dir():
             return False
-        if any(not (entry / name).is_file() for name in outputs):
-            log.warning("cache entry %s lacks some outputs; recomputing", entry)
+        try:
+            self.verify(entry, outputs)
+        except EntryDefect as defect:
+            self.damage = f"cache entry {entry} is damaged: {defect}; removing it and recomputing"
+            log.warning(self.damage)
+            self.discard(entry)
             return False
         now = time.time()
         for name, target in outputs.items():
@@ -96,6 +143,7 @@ class ResultCache:
             # The job has just produced this file: mtime now, or Snakemake would see it as older
             # than its inputs and schedule it again.
             os.utime(target, (now, now))
+            mark_restored(target, entry)
         return True
 
     def store(
@@ -105,26 +153,41 @@ class ResultCache:
         outputs: Mapping[str, str | os.PathLike[str]],
         material: Mapping[str, Any],
     ) -> Path:
-        """Add the job's outputs as the entry of ``key`` (a concurrent identical entry wins)."""
+        """Add the job's outputs as the entry of ``key``. A concurrent identical entry that
+        verifies wins; one that does not (a file lost or changed since) is replaced."""
         entry = self.entry(rule, key)
-        if (entry / ENTRY_FILE).is_file():
+        if self._sound(entry, outputs):
             return entry
         entry.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=entry.parent))
         try:
+            files = {}
             for name, source in outputs.items():
                 _place(Path(source), tmp / name)
-            record = {"key": key, "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **material}
+                files[name] = {"size": (tmp / name).stat().st_size,
+                               "sha256": content_digest(tmp / name)}  # fmt: skip
+            record = {"key": key, "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                      "files": files, **material}  # fmt: skip
             (tmp / ENTRY_FILE).write_text(json.dumps(record, indent=1, sort_keys=True, default=str))
+            if entry.is_dir():  # there, but damaged: replace it
+                log.warning("cache entry %s is damaged; replacing it", entry)
+                self.discard(entry)
             try:
                 os.rename(tmp, entry)
-            except OSError:  # another job stored the same key first: keep theirs
-                if not (entry / ENTRY_FILE).is_file():
+            except OSError:  # another job stored the same key first: keep theirs if it is sound
+                if not self._sound(entry, outputs):
                     raise
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp)
         return entry
+
+    def _sound(self, entry: Path, names: Iterable[str]) -> bool:
+        try:
+            self.verify(entry, names)
+        except EntryDefect:
+            return False
+        return True
 
 
 def _place(source: Path, target: Path) -> None:
@@ -171,5 +234,10 @@ def run_cached(smk: Any, stages: Iterable[str], compute: Callable[[], None]) -> 
         log.info(message)
         return True
     compute()
-    cache.store(smk.rule, key, outputs, material)
+    entry = cache.store(smk.rule, key, outputs, material)
+    if cache.damage:  # after the compute, whose logging set-up starts the job's log afresh
+        for log_path in list(smk.log)[:1]:
+            Path(log_path).parent.mkdir(parents=True, exist_ok=True)
+            with open(log_path, "a") as fh:
+                fh.write(f"graspstab cache: {cache.damage}; stored a whole entry at {entry}\n")
     return False

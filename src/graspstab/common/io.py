@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -12,6 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from graspstab.common.errors import GraspstabError
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
@@ -70,15 +73,59 @@ def write_json(path: str | os.PathLike[str], data: Any) -> None:
         tmp.write_text(text + "\n")
 
 
-class UnreadableArtefact(RuntimeError):
+class UnreadableArtefact(RuntimeError, GraspstabError):
     """An artefact on disk that cannot be parsed (truncated by a kill, a full disk, a bad copy)."""
 
 
+# The extended attribute a cache restore leaves on the file it placed: the entry it came from.
+CACHE_ORIGIN_ATTR = "user.graspstab.cache_entry"
+
+
+def mark_restored(path: str | os.PathLike[str], entry: str | os.PathLike[str]) -> None:
+    """Note on ``path`` the cache entry it was restored from (skipped where the filesystem keeps
+    no extended attributes: the message below then only loses its pointer to the entry)."""
+    with contextlib.suppress(OSError):
+        os.setxattr(path, CACHE_ORIGIN_ATTR, str(Path(entry).resolve()).encode())
+
+
+def cache_origin(path: str | os.PathLike[str]) -> Path | None:
+    """The cache entry ``path`` was restored from, if it was and the note survived."""
+    try:
+        return Path(os.getxattr(path, CACHE_ORIGIN_ATTR).decode())
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _origin_advice(path: str | os.PathLike[str]) -> str:
+    """How to recover a corrupt file that came from a cache entry: delete the entry too when it
+    holds the same bytes (a rerun would restore them again), else a rerun restores a good copy."""
+    entry = cache_origin(path)
+    if entry is None or not entry.is_dir():
+        return "Delete it and rerun; the workflow rebuilds it."
+    try:
+        record = json.loads((entry / "entry.json").read_text())
+        recorded = {f["sha256"] for f in record["files"].values()}
+        with open(path, "rb") as fh:
+            same = hashlib.file_digest(fh, "sha256").hexdigest() in recorded
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        same = True  # an entry we cannot read is no better than the file
+    if same:
+        return (
+            f"It was restored from cache entry {entry}, which holds the same bytes: delete "
+            "that folder and this file, then rerun; the workflow recomputes both."
+        )
+    return (
+        f"It was restored from cache entry {entry} and changed since: delete it and rerun; "
+        "the workflow restores the entry's verified copy."
+    )
+
+
 def unreadable(path: str | os.PathLike[str], error: BaseException) -> UnreadableArtefact:
-    """The one message for a corrupt artefact: which file, and how to recover."""
+    """The one message for a corrupt artefact: which file, and how to recover (naming the cache
+    entry it came from, if it did)."""
     return UnreadableArtefact(
         f"{path} is unreadable (truncated?): {type(error).__name__}: {error}. "
-        "Delete it and rerun; the workflow rebuilds it."
+        + _origin_advice(path)
     )
 
 

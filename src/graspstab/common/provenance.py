@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import graspstab
+from graspstab.common.io import write_json
 
 _PKG_ROOT = Path(graspstab.__file__).resolve().parent
 
@@ -149,19 +150,22 @@ def compute_platform() -> dict[str, Any]:
     """The hardware and numerical-library build a result was computed on. Floating-point
     results repeat exactly only on the same CPU family with the same BLAS/MKL build and thread
     count (kernels pick instruction sets and reduction orders at run time), so every artefact
-    records them beside the package versions."""
+    records them beside the package versions. Only facts that are the same on every run on the
+    same machine and settings (no time, no host name), the libraries sorted (threadpoolctl lists
+    them in the order the process happened to load them), so that a rerun writes the same bytes."""
     import sys
 
     from threadpoolctl import threadpool_info
 
+    blas = [
+        {k: lib.get(k) for k in ("internal_api", "version", "architecture", "num_threads")}
+        for lib in threadpool_info()
+    ]
     out: dict[str, Any] = {
         "machine": platform.machine(),
         "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
-        "blas": [
-            {k: lib.get(k) for k in ("internal_api", "version", "architecture", "num_threads")}
-            for lib in threadpool_info()
-        ],
+        "blas": sorted(blas, key=lambda lib: json.dumps(lib, sort_keys=True, default=str)),
     }
     if "torch" in sys.modules:  # only where the stage uses it; importing torch takes seconds
         torch = sys.modules["torch"]
@@ -193,3 +197,13 @@ def provenance(stage: str, params: Any) -> dict[str, Any]:
         },
         "platform": compute_platform(),
     }
+
+
+def write_timing(path: str | Path | None, record: dict[str, Any]) -> None:
+    """Write a job's run-time measurements (wall times, rates) to its timing sidecar ``path``
+    (strict JSON; nothing when ``path`` is None). They differ on every run, so they live beside
+    the data files, never in them, and a rerun rewrites the data byte for byte (docs/design.md,
+    data contracts)."""
+    if path is None:
+        return
+    write_json(path, record)

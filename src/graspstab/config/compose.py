@@ -17,7 +17,7 @@ import yaml
 from hydra import compose, initialize_config_dir
 from hydra.errors import HydraException
 from omegaconf import OmegaConf
-from omegaconf.errors import OmegaConfBaseException
+from omegaconf.errors import ConfigKeyError, OmegaConfBaseException
 
 from graspstab.config.errors import ConfigError
 
@@ -31,7 +31,10 @@ def _coerce(value: Any) -> Any:
     if isinstance(value, list):
         return [_coerce(v) for v in value]
     if isinstance(value, str) and value.strip():
-        parsed = yaml.safe_load(value)
+        try:
+            parsed = yaml.safe_load(value)
+        except yaml.YAMLError:  # not a YAML scalar ('[1', 'a: b: c'): the string as given
+            return value
         if isinstance(parsed, bool | int | float) or parsed is None:
             return parsed
     return value
@@ -57,6 +60,40 @@ def split_snakemake_config(
         else:
             values[key] = _coerce(value)
     return overrides, values
+
+
+def _unknown_key_message(exc: ConfigKeyError, config_dir: Path, set_name: Any) -> str:
+    """A ``--config`` value under a key the composed tree lacks: the dotted key, the closest
+    known key and the known ones, or, under ``objects.items``, how objects are added."""
+    from graspstab.config.validate import ENTRY_KEYS, did_you_mean  # validate imports compose
+
+    key, full = str(exc.key), str(exc.full_key)
+    parent = full.rsplit(".", 1)[0] if "." in full else "the top level"
+    node = exc.parent_node
+    known = [str(k) for k in node.keys()] if node is not None and hasattr(node, "keys") else []
+    set_file = f"config/objects/{set_name}.yaml in {config_dir}"
+    if full == f"objects.items.{key}":
+        close = did_you_mean(key, known)
+        return (
+            f"--config names object {key!r} under objects.items, which is not in object set "
+            f"{set_name!r}{close}: --config can change the fields of an object the set holds, "
+            f"not add one. Add it to an object set file ({set_file}, or a set of your own beside "
+            'it; README "Add an object")'
+        )
+    in_entry = full.startswith("objects.items.") and full.count(".") == 3
+    if in_entry and key in ENTRY_KEYS:
+        return (
+            f"--config sets {full}, but that entry of object set {set_name!r} has no {key!r}: "
+            "--config can change only the fields an entry already has. Add the field to the "
+            f"entry in its object set file ({set_file})"
+        )
+    if in_entry:
+        known = list(ENTRY_KEYS)
+    listed = f"; the keys there are {', '.join(known)}" if known else ""
+    return (
+        f"unknown key {key!r}{did_you_mean(key, known)} at {parent} in your --config values "
+        f"({full}){listed}. Fix the key's spelling"
+    )
 
 
 def compose_config(
@@ -89,6 +126,9 @@ def compose_config(
         if values:
             cfg = OmegaConf.merge(cfg, OmegaConf.create(values))
         resolved = OmegaConf.to_container(cfg, resolve=True)
+    except ConfigKeyError as exc:
+        set_name = OmegaConf.select(cfg, "objects.name", default="?")
+        raise ConfigError(_unknown_key_message(exc, config_dir, set_name)) from exc
     except OmegaConfBaseException as exc:
         raise ConfigError(
             f"could not apply the --config values {values}: {exc}. Check the key names against "

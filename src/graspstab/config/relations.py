@@ -46,10 +46,7 @@ def _unique(values: list[Any], field: str) -> None:
 def check_relations(cfg: dict[str, Any]) -> None:
     """Relations between fields (run after the schema, so every value has its type)."""
     labels = cfg["labels"]
-    if not labels["label_low"] < labels["label_high"]:
-        _fail(f"labels.label_low = {labels['label_low']} must be below labels.label_high = "
-              f"{labels['label_high']} (3.3.4: r <= low is stable, r >= high unstable, between "
-              "is ambiguous and dropped); swap them or narrow the band.")  # fmt: skip
+    _check_label_band(labels)
     _check_early_stops(cfg["replay"], labels)
     syn = cfg["synthesis"]
     if syn["seed_block"] is not None and syn["grasps_per_shard"] % syn["seed_block"]:
@@ -106,10 +103,58 @@ def check_relations(cfg: dict[str, Any]) -> None:
               "of sweep.windows_s or add it there.")  # fmt: skip
     cf_ms = {ms_of(w) for w in cfg["creep_free"]["sweep_windows_s"]}
     _check_crossval(cfg, sweep_ms, cf_ms)
+    _check_closed_loop(cfg, sweep_ms, cf_ms)
     if cfg["creep_free"]["enabled"] and ms_of(cfg["monitor"]["window_s"]) not in cf_ms:
         _fail(f"monitor.window_s = {cfg['monitor']['window_s']} s is not among "
               f"creep_free.sweep_windows_s ({list(cfg['creep_free']['sweep_windows_s'])}): the "
               "monitor also runs on the creep-free benchmark's sweep models: add it there.")
+
+
+def _check_label_band(labels: dict[str, Any]) -> None:
+    """3.3.4: r <= label_low is stable, r >= label_high unstable, and the band strictly between
+    is ambiguous (dropped). The band must have a width: at label_low == label_high a window with r
+    exactly there would be claimed by both classes."""
+    low, high = labels["label_low"], labels["label_high"]
+    rule = ("(3.3.4: a window is stable when r <= label_low, unstable when r >= label_high, and "
+            "dropped as ambiguous between them)")  # fmt: skip
+    if low > high:
+        _fail(f"labels.label_low = {low} is above labels.label_high = {high}: the band is "
+              f"reversed {rule}. Swap the two values (the reference's are label_low: 0.35, "
+              "label_high: 0.65).")  # fmt: skip
+    if low == high:
+        _fail(f"labels.label_low and labels.label_high are both {low}: the ambiguous band "
+              f"between them has zero width {rule}, so a window with r = {low} would be both "
+              "stable and unstable. label_low must be below label_high: lower label_low or raise "
+              "label_high to give the band a width (the reference's: 0.35 and 0.65).")
+
+
+def _check_closed_loop(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int]) -> None:
+    """The closed loop's monitors exist: the creep-free protocol has its benchmark, and a policy
+    driven by a sweep model or the proxy runs at a sweep window of each protocol it runs under."""
+    cl = cfg["closed_loop"]
+    if not cl["enabled"]:
+        return
+    if "creep_free" in cl["protocols"] and not cfg["creep_free"]["enabled"]:
+        _fail(f"closed_loop.protocols = {list(cl['protocols'])} names creep_free but "
+              "creep_free.enabled is false: the creep-free protocol's monitors are the creep-free "
+              "benchmark's sweep models. To fix it, set creep_free.enabled=true, or "
+              "closed_loop.protocols=[reference]: --config 'creep_free={enabled: true}' (the "
+              "closed_loop profile does), or --config 'closed_loop={enabled: true, protocols: "
+              "[reference]}'.")  # fmt: skip
+    windowed = {"proxy", "cnn", "gru", "lstm"}
+    if not windowed & {*cl["policies"], *cl["sweep"]["policies"]}:
+        return
+    w = cl["window_s"]
+    if ms_of(w) not in sweep_ms:
+        _fail(f"closed_loop.window_s = {w} s is not a sweep window "
+              f"({list(cfg['sweep']['windows_s'])}): the closed loop's monitors are the sweep's "
+              "models and the proxy on the sweep's dataset at that window; choose one of "
+              "sweep.windows_s or add it there.")  # fmt: skip
+    if "creep_free" in cl["protocols"] and ms_of(w) not in cf_ms:
+        _fail(f"closed_loop.window_s = {w} s is not among creep_free.sweep_windows_s "
+              f"({list(cfg['creep_free']['sweep_windows_s'])}): the creep-free protocol's "
+              "monitors are that benchmark's sweep models; add it there, or run the reference "
+              "protocol only (closed_loop.protocols: [reference]).")  # fmt: skip
 
 
 def _check_crossval(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int]) -> None:

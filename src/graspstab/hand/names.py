@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 
+from graspstab.common.errors import GraspstabError
+
 FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "little")
 
 # Root body and free joint added by the hand stage (3.1.1: the wrist is a free pose).
@@ -62,7 +64,7 @@ FINGER_LINK_BODIES: dict[str, tuple[str, ...]] = {
 }
 
 
-class HandNameError(KeyError):
+class HandNameError(KeyError, GraspstabError):
     """A configured MJCF name is not in the hand description; the message lists the valid ones."""
 
     def __str__(self) -> str:  # KeyError quotes its message; show it plainly

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from graspstab.common.errors import GraspstabError
 from graspstab.common.io import (
     read_parquet,
     read_parquet_metadata,
@@ -48,7 +49,7 @@ INPUT_SETS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 }
 
 
-class InputSetError(ValueError):
+class InputSetError(ValueError, GraspstabError):
     """An unknown input set, or a dataset and traces that disagree."""
 
 

@@ -16,13 +16,14 @@ import numpy as np
 import polars as pl
 import torch
 
+from graspstab.common.errors import GraspstabError
 from graspstab.common.io import read_json, read_parquet
 from graspstab.labels.label_windows import load_windows, normalisation
 
 SPLITS = ("train", "val", "test")
 
 
-class DatasetError(ValueError):
+class DatasetError(ValueError, GraspstabError):
     """A dataset that cannot be trained on (missing split, unknown object in an assignment)."""
 
 

@@ -17,16 +17,20 @@ import sqlalchemy
 from optuna.storages._rdb import models
 from sqlalchemy.engine import make_url
 
+from graspstab.common.errors import GraspstabError
+
 # Heartbeats of a shared study: a trial is live while its worker has beaten within GRACE_S.
 HEARTBEAT_S = 60
 GRACE_S = 180
 DRIVER_HINT = "pip install -e '.[cluster]' (psycopg2-binary, the driver of postgresql:// URLs)"
 
 
-class StorageError(SystemExit):
-    """The study's storage cannot be opened. A SystemExit, so the job (the Snakemake script
-    calls :func:`graspstab.learning.tune_model.tune_model` directly) ends with this one paragraph
-    on stderr, exit status 1 and no traceback; the message names the URL without its password."""
+class StorageError(SystemExit, GraspstabError):
+    """The study's storage cannot be opened. A SystemExit, so a direct caller of
+    :func:`graspstab.learning.tune_model.tune_model` ends with this one paragraph on stderr, exit
+    status 1 and no traceback; a graspstab error too, so the workflow job reports it in its log
+    like the others (:func:`graspstab.common.jobs.job`). The message names the URL without its
+    password."""
 
 
 def _userinfo(url: str) -> tuple[str, str, str] | None:

@@ -49,11 +49,6 @@ def aggregate_baseline(
         "summary": summary.to_dicts(),
         "errors": errors.to_dicts(),
         "parameters": {r["family"]: r["parameters"] for r in records},
-        "seconds_per_epoch": aggregate.mean_std(
-            pl.DataFrame([{"family": r["family"], "seed": r["seed"],
-                           "seconds_per_epoch": r["seconds_per_epoch"]} for r in records]),
-            ["family"], ["seconds_per_epoch"],
-        ).to_dicts(),
     }  # fmt: skip
     write_json(out / "summary.json", result)
     log.info("baseline benchmark over %d runs:\n%s", len(records), summary.select(

@@ -21,7 +21,7 @@ import torch
 
 from graspstab.common.io import atomic_path, write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.common.provenance import code_version, compute_platform, stable_hash
+from graspstab.common.provenance import code_version, compute_platform, stable_hash, write_timing
 from graspstab.learning.augmentation import attach
 from graspstab.learning.data import WindowData, load_window_data
 from graspstab.learning.features import window_transform
@@ -113,9 +113,12 @@ def train_model(
     augment: Mapping[str, Any] | None = None,
     features: Mapping[str, Any] | None = None,
     log_file: str | Path | None = None,
+    timing_path: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run the per-seed procedure and write its artefacts into ``out_dir``; return the metrics
-    (``extra`` keys, e.g. the split assignment's number, are stored with them). ``augment``
+    (``extra`` keys, e.g. the split assignment's number, are stored with them). The run's
+    timings (training seconds, per epoch) differ on every run: they go to the timing sidecar
+    ``timing_path`` (when given) and the log, never into ``metrics.json``. ``augment``
     (sensing, trace_paths, trace_keys, dt) trains through the sensing group's sensors
     (graspstab.learning.augmentation); validation and test stay clean."""
     setup_logging(log_file)
@@ -156,10 +159,8 @@ def train_model(
         "epochs_run": len(result.history),
         "stopped_early": result.stopped_early,
         "selection_metric": result.selection_metric,
-        "train_seconds": result.seconds,
-        "seconds_per_epoch": result.seconds / max(len(result.history), 1),
         "placement": result.placement,
-        "history": result.history,
+        "history": [{k: v for k, v in row.items() if k != "seconds"} for row in result.history],
         **metrics,
         **dict(extra or {}),
         "code_version": code_version("learning", "labels"),
@@ -175,7 +176,9 @@ def train_model(
     )  # fmt: skip
     write_parquet(out / "predictions.parquet", predictions)
     if checkpoint:
-        with atomic_path(out / "model.pt") as tmp:
+        # through a file object: given a path, torch names the archive's folder after the file,
+        # here the temporary one (a random name), and no two saves would be the same bytes
+        with atomic_path(out / "model.pt") as tmp, open(tmp, "wb") as fh:
             torch.save(
                 {
                     "state_dict": result.state_dict,
@@ -187,7 +190,12 @@ def train_model(
                     "threshold": metrics["threshold"]["threshold"],
                     "params": params,
                 },
-                tmp,
+                fh,
             )
     write_json(out / "metrics.json", record)
+    write_timing(timing_path, {
+        "train_seconds": result.seconds,
+        "seconds_per_epoch": result.seconds / max(len(result.history), 1),
+        "epoch_seconds": [row["seconds"] for row in result.history],
+    })  # fmt: skip
     return record

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from graspstab.common.errors import GraspstabError
 from graspstab.common.io import read_json, write_json
 
 FINGERTIPS = 5
@@ -24,7 +25,7 @@ FRAME_SHAPE = (FINGERTIPS, len(CHANNELS))
 FORMAT = "graspstab.monitor/1"
 
 
-class MonitorError(ValueError):
+class MonitorError(ValueError, GraspstabError):
     """Inputs a monitor cannot be built from or fed (wrong shapes, contradicting files)."""
 
 

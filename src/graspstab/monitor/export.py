@@ -30,6 +30,7 @@ import logging
 import tempfile
 import warnings
 from collections.abc import Iterator, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +38,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from graspstab.common.errors import GraspstabError
 from graspstab.common.io import atomic_path, reading
 from graspstab.common.provenance import code_version, installed_versions
 from graspstab.learning.models import CNNClassifier, RecurrentClassifier
@@ -60,7 +62,7 @@ _EXAMPLE_BATCH = 2  # not 1: torch.export specialises a size-1 dimension to a co
 _REGISTRATION_LOG = "torch.onnx._internal.exporter._registration"
 
 
-class ExportError(RuntimeError):
+class ExportError(RuntimeError, GraspstabError):
     """A model that cannot be exported (unknown architecture, an exporter failure)."""
 
 
@@ -125,6 +127,20 @@ def _extra(fmt: str, **more: Any) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def _trace_apart(model: nn.Module, example: torch.Tensor) -> torch.jit.ScriptModule:
+    """``model`` traced and frozen in a thread of its own: the tracer writes the Python call stack
+    into the file's debug records, and the caller's (a Snakemake job's temporary script, its working
+    directory) differs on every run; a fresh thread's stack holds only this module's frames, so a
+    rerun exports the same bytes."""
+
+    def trace() -> torch.jit.ScriptModule:
+        with torch.no_grad():  # grad mode is per thread
+            return torch.jit.freeze(torch.jit.trace(model, (example,)))
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(trace).result()
+
+
 def export_torchscript(
     model: nn.Module,
     constants: MonitorConstants,
@@ -137,8 +153,11 @@ def export_torchscript(
     extra = _extra("torchscript")
     record = json.dumps({**extra, **constants.to_dict()}, sort_keys=True)
     with torch.no_grad(), _jit_quiet(), atomic_path(path) as tmp:
-        traced = torch.jit.freeze(torch.jit.trace(wrapped, (_example(constants),)))
-        torch.jit.save(traced, str(tmp), _extra_files={TS_EXTRA: record})
+        traced = _trace_apart(wrapped, _example(constants))
+        # a file object: given a path, the archive's folder is named after the (random) temporary
+        # file, and no two exports would be the same bytes
+        with open(tmp, "wb") as fh:
+            torch.jit.save(traced, fh, _extra_files={TS_EXTRA: record})
     if sidecar is not None:
         write_constants(sidecar, constants, extra)
 

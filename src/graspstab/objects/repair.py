@@ -9,10 +9,12 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from graspstab.common.errors import GraspstabError
+
 log = logging.getLogger(__name__)
 
 
-class MeshRepairError(RuntimeError):
+class MeshRepairError(RuntimeError, GraspstabError):
     """The mesh cannot be turned into a single closed body automatically."""
 
 

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from graspstab.common.errors import GraspstabError
 from graspstab.common.io import save_npz
 
 #: Most grid nodes one signed-distance grid may have (2^24, ~16.8 million). Building needs about
@@ -39,7 +40,7 @@ MAX_SPACING = 0.01  # the largest spacing the config schema allows [m]
 MARGIN_KEY = "preprocess.sdf.margin"
 
 
-class SDFGridTooLarge(ValueError):
+class SDFGridTooLarge(ValueError, GraspstabError):
     """The grid a mesh would need exceeds :data:`MAX_NODES`; the message says what to change."""
 
 

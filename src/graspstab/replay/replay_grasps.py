@@ -8,6 +8,9 @@ Writes two files per shard:
   (T, 5)`` (eq. 18 [N], fingertips in eq. 19's order). A zip member per array, so the labelling
   stage reads one grasp without loading the shard.
 * ``replays_<k>.parquet``: one row per grasp, the summary below.
+
+and, with ``timing_path``, the job's timing sidecar (JSON): its wall time, simulated steps per
+second and each grasp's wall time, which differ on every run and so stay out of the data.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import polars as pl
 
 from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.common.provenance import provenance
+from graspstab.common.provenance import provenance, write_timing
 from graspstab.common.runs import earliest_run
 from graspstab.replay.ramp import RampLoad, ramp_direction, ramp_load
 from graspstab.replay.run import DeepStop, ReplayResult, run_replay
@@ -107,8 +110,10 @@ def replay_grasps(
     summary_path: str | Path,
     params: dict[str, Any],
     log_file: str | Path | None = None,
+    timing_path: str | Path | None = None,
 ) -> pl.DataFrame:
-    """Replay every grasp of ``grasp_table``; write the traces and the summary table."""
+    """Replay every grasp of ``grasp_table``; write the traces, the summary table and (with
+    ``timing_path``) the timing sidecar."""
     setup_logging(log_file)
     t0 = time.perf_counter()
     grasps = read_parquet(grasp_table)
@@ -121,7 +126,7 @@ def replay_grasps(
     too_deep = deep_stop(params)
     gravity = np.asarray(params["gravity"], dtype=np.float64)
     arrays: dict[str, np.ndarray] = {}
-    rows = []
+    rows, walls = [], []
     for i, g in enumerate(grasps.iter_rows(named=True)):
         pos = np.array([g[f"wrist_{a}"] for a in "xyz"])
         quat = np.array([g[f"quat_{a}"] for a in "wxyz"])
@@ -144,25 +149,24 @@ def replay_grasps(
                 "object": object_id,
                 "shard": int(g["shard"]),
                 **summary,
-                "wall_s": time.perf_counter() - start,
             }
         )
+        walls.append(time.perf_counter() - start)
         log.info(
             "%s grasp %d (%d/%d): %s after %.2f s, moved %.1f mm, deepest %.1f mm (%.1f s wall)",
             object_id, g["grasp_id"], i + 1, grasps.height, summary["stop_reason"],
             summary["duration_s"], summary["final_displacement"] * 1e3,
-            summary["max_penetration"] * 1e3, rows[-1]["wall_s"],
+            summary["max_penetration"] * 1e3, walls[-1],
         )  # fmt: skip
     table = pl.DataFrame(rows)
     save_npz(traces_path, **arrays)
     elapsed = time.perf_counter() - t0
     simulated = float(table["duration_s"].sum()) if table.height else 0.0
+    steps_per_s = simulated / dt / elapsed if elapsed > 0 else None
     meta = {
         "object_id": object_id,
         "grasps": table.height,
-        "wall_time_s": elapsed,
         "simulated_s": simulated,
-        "steps_per_s": simulated / dt / elapsed if elapsed > 0 else None,
         "frame": "object frame (centre of mass, +z up); row t = state before step t",
         "contact_model": params["contact"]["name"],
         "squeeze_rad": float(params["squeeze"]["angle"]),
@@ -171,9 +175,17 @@ def replay_grasps(
         "provenance": provenance("replay", params),
     }
     write_parquet(summary_path, table, metadata=meta)
+    write_timing(timing_path, {
+        "object_id": object_id,
+        "wall_time_s": elapsed,
+        "simulated_s": simulated,
+        "steps_per_s": steps_per_s,
+        "grasp_id": [r["grasp_id"] for r in rows],
+        "wall_s": walls,
+    })  # fmt: skip
     log.info(
         "%s: %d replays in %.1f s (%.0f simulated steps/s); held to the end %d, stopped early %d",
-        object_id, table.height, elapsed, meta["steps_per_s"] or 0,
+        object_id, table.height, elapsed, steps_per_s or 0,
         int(table["held_at_end"].sum()) if table.height else 0,
         int((table["stop_reason"] != "completed").sum()) if table.height else 0,
     )  # fmt: skip

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from graspstab.common.io import reading
+from graspstab.hand.names import FINGERS
 
 # Everything a replay records per time step (object frame): position, velocity, d_t, eq. 18 forces
 # and the shear's two fingertip-frame components (graspstab.replay.sensors.shear_components).
@@ -22,6 +23,12 @@ CHANNELS = (
 )  # fmt: skip
 # The external force of the load-ramp protocol (object frame) [N]; absent under gravity alone.
 LOAD = "load"
+# Values per time step of each channel: 3-vectors, d_t, and one per fingertip (eq. 19's order).
+WIDTHS = {"position": 3, "velocity": 3, "min_distance": 1, LOAD: 3} | {
+    c: len(FINGERS) for c in ("normal", "shear", "shear_distal", "shear_lateral")
+}
+# A generous bound on what one npz member adds to its data: zip headers, its name, the npy header.
+MEMBER_OVERHEAD = 512
 
 
 def trace_key(grasp_id: int, channel: str) -> str:
@@ -55,3 +62,23 @@ def read_traces(
     """The named channels of one grasp of a shard's trace file."""
     with TraceFile(path) as traces:
         return traces.grasp(grasp_id, channels)
+
+
+def trace_bytes(grasps: int, steps: int, load: bool) -> int:
+    """The largest size of a shard's trace file: ``grasps`` replays of ``steps`` float32 rows
+    each, stored uncompressed. The real file is smaller (npz compression, early stops); the
+    replay job checks this much free space before it simulates."""
+    channels = [*CHANNELS, LOAD] if load else list(CHANNELS)
+    per_grasp = steps * sum(WIDTHS[c] for c in channels) * 4 + len(channels) * MEMBER_OVERHEAD
+    return grasps * per_grasp
+
+
+def shard_trace_bytes(grasp_table: str | os.PathLike[str], params: dict[str, Any]) -> int:
+    """:func:`trace_bytes` for the replay of ``grasp_table`` (its row count, from the Parquet
+    footer) under the replay ``params`` (``steps``; the ``load`` channel unless ``protocol`` is
+    ``gravity``)."""
+    import pyarrow.parquet as pq
+
+    with reading(grasp_table):
+        grasps = pq.ParquetFile(grasp_table).metadata.num_rows
+    return trace_bytes(grasps, int(params["steps"]), params["protocol"] != "gravity")

@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from graspstab.common.errors import GraspstabError
 from graspstab.labels.label_windows import CHANNELS
 from graspstab.labels.trace_windows import grasps_of
 
 
-class SegmentError(ValueError):
+class SegmentError(ValueError, GraspstabError):
     """A window whose grasp has no trace file among the declared inputs."""
 
 

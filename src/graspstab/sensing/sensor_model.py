@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from graspstab.common.errors import GraspstabError
+
 #: The corruptions, each with the field that sets its strength (its "off" value is the default).
 CORRUPTIONS = {
     "noise": "noise",
@@ -45,7 +47,7 @@ CORRUPTIONS = {
 }
 
 
-class SensorModelError(ValueError):
+class SensorModelError(ValueError, GraspstabError):
     """A sensor setting out of its range (names the field and how to fix it)."""
 
 

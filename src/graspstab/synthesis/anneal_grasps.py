@@ -26,7 +26,7 @@ import trimesh
 
 from graspstab.common.io import load_npz, read_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.common.provenance import provenance
+from graspstab.common.provenance import provenance, write_timing
 from graspstab.synthesis.anneal import AnnealSchedule, anneal, log_progress
 from graspstab.synthesis.grasp_energy import TERMS, GraspEnergy
 from graspstab.synthesis.pregrasp import sample_pregrasps
@@ -126,11 +126,14 @@ def anneal_grasps(
     shard: int,
     threads: int | None = None,
     log_file: str | Path | None = None,
+    timing_path: str | Path | None = None,
 ) -> pl.DataFrame:
     """Sample the shard's pre-grasps block by block (:func:`seed_blocks`), anneal all of its
-    chains in batches of ``batch_size`` and write the Parquet table. A chain depends only on its
-    seed and start (graspstab.synthesis.anneal), so a block's grasps come out the same in any
-    shard that holds it; one call over more chains costs less per grasp."""
+    chains in batches of ``batch_size`` and write the Parquet table; with ``timing_path``, the
+    job's wall time and rate go to that timing sidecar (they differ on every run, so they stay
+    out of the table). A chain depends only on its seed and start (graspstab.synthesis.anneal),
+    so a block's grasps come out the same in any shard that holds it; one call over more chains
+    costs less per grasp."""
     setup_logging(log_file)
     if threads:
         torch.set_num_threads(int(threads))
@@ -206,13 +209,13 @@ def anneal_grasps(
         "seed": seed,
         "grasps": n,
         "seed_blocks": blocks,
-        "wall_time_s": elapsed,
-        "grasps_per_s": n / elapsed,
         "torch_threads": torch.get_num_threads(),
         "frame": "object frame (centre of mass, +z up); quaternions w, x, y, z",
         "provenance": provenance("synthesis", params),
     }
     write_parquet(out_path, table, metadata=meta)
+    write_timing(timing_path, {"object_id": object_id, "shard": shard, "grasps": n,
+                               "wall_time_s": elapsed, "grasps_per_s": n / elapsed})  # fmt: skip
     log.info(
         "%s shard %d: %d grasps in %.1f s (%.2f grasps/s); median energy %.1f -> %.1f",
         object_id, shard, n, elapsed, n / elapsed,
@@ -233,12 +236,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--shard", type=int, default=0)
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--log-file", default=None)
+    ap.add_argument("--timing", type=Path, default=None, help="the timing sidecar (JSON) to write")
     args = ap.parse_args(argv)
     params = json.loads(args.params_json)
     read_json(args.object_dir / "meta.json")  # fail early, naming the file, if not preprocessed
     anneal_grasps(
         args.object_id, args.object_dir, args.hand_dir, args.out, params, args.seed, args.shard,
-        threads=args.threads, log_file=args.log_file,
+        threads=args.threads, log_file=args.log_file, timing_path=args.timing,
     )  # fmt: skip
     return 0
 

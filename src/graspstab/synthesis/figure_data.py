@@ -12,6 +12,8 @@ from typing import Any, Literal
 import numpy as np
 import polars as pl
 
+from graspstab.common.errors import GraspstabError
+
 #: Grasp-table pose columns (object frame): palm position [m], quaternion w-x-y-z, 16 joints [rad].
 WRIST_COLUMNS: tuple[str, ...] = ("wrist_x", "wrist_y", "wrist_z")
 QUAT_COLUMNS: tuple[str, ...] = ("quat_w", "quat_x", "quat_y", "quat_z")
@@ -31,7 +33,7 @@ PREGRASP_KEYS: tuple[str, ...] = (
 )
 
 
-class FigureInputError(ValueError):
+class FigureInputError(ValueError, GraspstabError):
     """A figure's input table or pre-grasp batch lacks a field or has the wrong shape."""
 
 
