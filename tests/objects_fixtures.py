@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 from conftest import COARSE_COACD as COARSE_COACD  # re-exported for the objects tests
@@ -40,3 +42,16 @@ def mug_like(r_out: float = 0.04, r_in: float = 0.032, h: float = 0.08, floor: f
     cup = trimesh.boolean.difference([outer, inner], engine="manifold")
     assert cup.is_watertight
     return cup
+
+
+def own_object_set(tmp_path: Path, object_id: str, mesh: Path, mass: float) -> list[str]:
+    """--config arguments selecting a one-object set whose entry gives ``mesh`` with sha256 null
+    (an extra Hydra search path: --config cannot add a key to an entry, struct mode refuses it)."""
+    conf = tmp_path / "conf" / "objects"
+    conf.mkdir(parents=True)
+    (conf / "own.yaml").write_text(
+        f"name: own\nitems:\n  {object_id}:\n    split: train\n    mass: {mass}\n"
+        f"    sha256: null\n    mesh: {mesh}\n"
+    )
+    searchpath = f'"hydra.searchpath=[file://{tmp_path / "conf"}]"'
+    return ["--config", f"overrides=[{searchpath}]", "objects=own"]

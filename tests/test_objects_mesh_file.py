@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from objects_fixtures import COARSE_COACD
+from objects_fixtures import COARSE_COACD, own_object_set
 
 from graspstab.assets import AssetError
 from graspstab.assets.mesh_file import MeshFileError, load_object_mesh
@@ -169,19 +169,6 @@ def test_grid_shape_unchanged_under_the_cap(foam_brick_mesh: Path) -> None:
 # ---------------------------------------------------------------- the workflow
 
 
-def _own_object_set(tmp_path: Path, mesh: Path) -> list[str]:
-    """--config arguments selecting a one-object set whose entry gives ``mesh`` (an extra Hydra
-    search path: --config cannot add a key to an entry, struct mode refuses it)."""
-    conf = tmp_path / "conf" / "objects"
-    conf.mkdir(parents=True)
-    (conf / "own.yaml").write_text(
-        f"name: own\nitems:\n  {FOAM}:\n    split: train\n    mass: {MASS}\n"
-        f"    sha256: null\n    mesh: {mesh}\n"
-    )
-    searchpath = f'"hydra.searchpath=[file://{tmp_path / "conf"}]"'
-    return ["--config", f"overrides=[{searchpath}]", "objects=own"]
-
-
 @pytest.mark.workflow
 def test_editing_users_mesh_reruns_fetch_and_a_bad_edit_fails_there(
     tmp_path: Path, asset_env: dict[str, str], foam_brick_mesh: Path
@@ -189,7 +176,7 @@ def test_editing_users_mesh_reruns_fetch_and_a_bad_edit_fails_there(
     env = asset_env
     user = tmp_path / "own.obj"
     shutil.copyfile(foam_brick_mesh, user)
-    config = _own_object_set(tmp_path, user)
+    config = own_object_set(tmp_path, FOAM, user, MASS)
     work = tmp_path / "wd"
     target = f"resources/ycb/{FOAM}/textured.obj"
     proc = snakemake_run(work, target, *config, env=env)

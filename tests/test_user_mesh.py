@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
+from objects_fixtures import own_object_set
 
 from graspstab.assets import AssetError
 from graspstab.assets.mesh_file import MIN_THICKNESS_M, MIN_VOLUME_FRACTION
@@ -182,19 +183,6 @@ def test_user_mesh_sha256_is_the_content_hash_cached_per_file(tmp_path: Path) ->
 # ---------------------------------------------------------------- the workflow
 
 
-def _own_object_set(tmp_path: Path, mesh: Path) -> list[str]:
-    """--config arguments selecting a one-object set whose entry gives ``mesh`` with sha256 null
-    (an extra Hydra search path: --config cannot add a key to an entry)."""
-    conf = tmp_path / "conf" / "objects"
-    conf.mkdir(parents=True)
-    (conf / "own.yaml").write_text(
-        f"name: own\nitems:\n  {OWN}:\n    split: train\n    mass: 0.03\n"
-        f"    sha256: null\n    mesh: {mesh}\n"
-    )
-    searchpath = f'"hydra.searchpath=[file://{tmp_path / "conf"}]"'
-    return ["--config", f"overrides=[{searchpath}]", "objects=own"]
-
-
 @pytest.mark.workflow
 def test_edit_keeping_the_mtime_reruns_the_copy_and_a_flat_edit_fails_there(
     tmp_path: Path, asset_env: dict[str, str], foam_brick_mesh: Path
@@ -202,7 +190,7 @@ def test_edit_keeping_the_mtime_reruns_the_copy_and_a_flat_edit_fails_there(
     user = tmp_path / "own.obj"
     shutil.copyfile(foam_brick_mesh, user)
     stamp = (user.stat().st_atime_ns, user.stat().st_mtime_ns)
-    config = _own_object_set(tmp_path, user)
+    config = own_object_set(tmp_path, OWN, user, 0.03)
     work = tmp_path / "wd"
     target = f"resources/ycb/{OWN}/textured.obj"
     copy = work / target
