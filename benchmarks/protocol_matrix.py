@@ -34,7 +34,7 @@ import polars as pl
 from graspstab.common.runs import earliest_run
 from graspstab.config import compose_config
 from graspstab.labels.label_windows import grasp_windows
-from graspstab.replay.replay_grasps import grasp_load
+from graspstab.replay.grasp_setup import grasp_load
 from graspstab.replay.run import run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 

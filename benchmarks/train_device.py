@@ -44,7 +44,7 @@ def synthetic_dataset(root: Path, train: int, val: int, steps: int, seed: int = 
     """A dataset directory of random windows in label_windows' layout (10 % unstable)."""
     import polars as pl
 
-    from graspstab.labels.label_windows import normalisation
+    from graspstab.labels.dataset import normalisation
 
     rng = np.random.default_rng(seed)
     n = train + val

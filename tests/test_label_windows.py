@@ -11,7 +11,8 @@ import yaml
 from conftest import CONFIG_DIR
 
 from graspstab.common.io import save_npz
-from graspstab.labels.label_windows import label_windows, load_windows
+from graspstab.labels.dataset import load_windows
+from graspstab.labels.label_windows import label_windows
 from graspstab.replay.traces import trace_key
 
 LABELS = yaml.safe_load((CONFIG_DIR / "labels" / "default.yaml").read_text())

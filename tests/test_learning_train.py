@@ -17,7 +17,7 @@ import torch
 import yaml
 from conftest import CONFIG_DIR
 
-from graspstab.labels.label_windows import normalisation
+from graspstab.labels.dataset import normalisation
 from graspstab.learning import aggregate
 from graspstab.learning.data import DatasetError, load_window_data
 from graspstab.learning.latency import measure_latency

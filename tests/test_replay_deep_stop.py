@@ -11,7 +11,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from graspstab.labels.interval import usable_interval
-from graspstab.replay.replay_grasps import deep_stop
+from graspstab.replay.grasp_setup import deep_stop
 from graspstab.replay.run import DeepStop, run_replay
 from graspstab.replay.sensors import sensor_layout
 from tests.test_replay_sensors import SQUEEZE, TIPS, _placed

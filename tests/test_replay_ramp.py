@@ -13,6 +13,7 @@ from conftest import CONFIG_DIR
 
 from graspstab.config import compose_config
 from graspstab.replay.creep import BOX_MASS, squeezed_box
+from graspstab.replay.grasp_setup import grasp_load
 from graspstab.replay.ramp import (
     CONTROL_SPEC,
     RampLoad,
@@ -20,7 +21,6 @@ from graspstab.replay.ramp import (
     ramp_direction,
     ramp_magnitude,
 )
-from graspstab.replay.replay_grasps import grasp_load
 from graspstab.replay.run import run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 

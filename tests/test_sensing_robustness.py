@@ -14,7 +14,7 @@ import yaml
 from conftest import CONFIG_DIR
 from synthetic_replays import labelled_replays
 
-from graspstab.labels.label_windows import load_windows
+from graspstab.labels.dataset import load_windows
 from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
 from graspstab.learning.metrics import binary_metrics

@@ -105,7 +105,9 @@ def listed_jobs(text: str) -> list[dict]:
             "rule": re.match(r"(?:local)?rule (\w+):", block).group(1),
             **{name: items(name) for name in ("input", "output", "log", "benchmark")},
             "wildcards": dict(w.split("=", 1) for w in items("wildcards")),
-            "resources": dict(r.split("=", 1) for r in items("resources")),
+            # only name=value pairs: a job's own stderr, in the same stream, can land inside the
+            # line (seen once in a full-suite run: a pair without "=")
+            "resources": dict(r.split("=", 1) for r in items("resources") if "=" in r),
             "threads": int(fields.get("threads", 1)),
         })  # fmt: skip
     return jobs

@@ -27,8 +27,8 @@ from graspstab.closedloop.reflex import GripReflex, ReflexParams
 from graspstab.closedloop.sweep import Variant, default_variant
 from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.labels.interval import steps_of
+from graspstab.replay.grasp_setup import deep_stop, grasp_load
 from graspstab.replay.protocols import creep_free_replay, replay_params
-from graspstab.replay.replay_grasps import deep_stop, grasp_load
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp
 

@@ -1,11 +1,12 @@
-"""``python -m graspstab.config show|reference``: the resolved configuration, the reference page."""
+"""``python -m graspstab.config show``: the resolved configuration, composed and validated as the
+Snakefile does. (The reference page, docs/configuration.md, is a docs tool: ``python -m
+graspstab.config.docs``.)"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from graspstab.config import reference
 from graspstab.config import show as show_mod
 from graspstab.config.errors import ConfigError
 
@@ -22,21 +23,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     show.add_argument("entries", nargs="*", metavar="KEY=VALUE", help="as for snakemake --config")
     show.add_argument("--key", help="print only this subtree (dotted path, e.g. train.threshold)")
-    ref = sub.add_parser(
-        "reference", help="print the configuration reference page (docs/configuration.md)"
+    show.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
+    show.add_argument(
+        "--schema",
+        help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
     )
-    for p in (show, ref):
-        p.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
-        p.add_argument(
-            "--schema",
-            help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
-        )
     args = parser.parse_args(argv)
     try:
         config_dir, schema = show_mod.locate(args.config_dir, args.schema)
-        if args.command == "reference":
-            sys.stdout.write(reference.render(config_dir, schema))
-            return 0
         cfg = show_mod.resolved(config_dir, schema, args.entries)
         sys.stdout.write(show_mod.dump(show_mod.subtree(cfg, args.key) if args.key else cfg))
     except ConfigError as exc:

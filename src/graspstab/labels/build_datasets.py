@@ -15,7 +15,8 @@ import polars as pl
 
 from graspstab.common.io import read_parquet, save_npy, write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.labels.label_windows import label_windows, load_windows, normalisation
+from graspstab.labels.dataset import load_windows, normalisation
+from graspstab.labels.label_windows import label_windows
 from graspstab.labels.trim import trim_same_end
 from graspstab.labels.windows import step_counts
 

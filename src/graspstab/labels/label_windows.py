@@ -14,7 +14,6 @@ W x 5 fingertips x {normal, shear}). Writes into ``out_dir``:
 
 from __future__ import annotations
 
-import os
 import zlib
 from pathlib import Path
 from typing import Any
@@ -22,12 +21,11 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import load_npy, read_parquet, save_npy, write_json, write_parquet
+from graspstab.common.io import read_parquet, save_npy, write_json, write_parquet
+from graspstab.labels.dataset import CHANNELS, normalisation
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
 from graspstab.replay.traces import TraceFile
-
-CHANNELS = ("normal", "shear")
 
 
 def grasp_rng(seed: int, object_id: str, grasp_id: int) -> np.random.Generator:
@@ -104,21 +102,3 @@ def label_windows(
     write_parquet(out / "index.parquet", index, metadata={"window_steps": w, "dt": dt,
                                                           "window_s": window_s})  # fmt: skip
     return index
-
-
-def normalisation(windows: np.ndarray, index: pl.DataFrame, eps: float = 1e-6) -> dict[str, Any]:
-    """Per fingertip x channel mean and std over the training windows' time steps only (3.5.2),
-    the std floored at ``eps``; validation and test windows never enter."""
-    train = np.asarray(windows[(index["split"] == "train").to_numpy()])
-    flat = train.reshape(-1, 5, 2).astype(np.float64)
-    mean = flat.mean(axis=0) if len(flat) else np.zeros((5, 2))
-    std = np.maximum(flat.std(axis=0), eps) if len(flat) else np.ones((5, 2))
-    return {
-        "mean": mean.tolist(), "std": std.tolist(), "eps": eps, "axes": "fingertip x channel",
-        "channels": list(CHANNELS), "train_windows": int(len(train)),
-    }  # fmt: skip
-
-
-def load_windows(out_dir: str | Path) -> np.ndarray:
-    """The dataset's windows as a read-only memory map (N, W, 5, 2)."""
-    return load_npy(os.fspath(Path(out_dir) / "windows.npy"), mmap_mode="r")

@@ -18,7 +18,7 @@ import torch
 
 from graspstab.common.errors import GraspstabError
 from graspstab.common.io import read_json, read_parquet
-from graspstab.labels.label_windows import load_windows, normalisation
+from graspstab.labels.dataset import load_windows, normalisation
 
 SPLITS = ("train", "val", "test")
 

@@ -20,7 +20,7 @@ from graspstab.common.errors import GraspstabError
 from graspstab.common.io import read_json, write_json
 
 FINGERTIPS = 5
-CHANNELS = ("normal", "shear")  # the window tensor's last axis (labels.label_windows.CHANNELS)
+CHANNELS = ("normal", "shear")  # the window tensor's last axis (labels.dataset.CHANNELS)
 FRAME_SHAPE = (FINGERTIPS, len(CHANNELS))
 FORMAT = "graspstab.monitor/1"
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import logging
 import time
-import zlib
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +28,9 @@ from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance, write_timing
 from graspstab.common.runs import earliest_run
-from graspstab.replay.ramp import RampLoad, ramp_direction, ramp_load
-from graspstab.replay.run import DeepStop, ReplayResult, run_replay
+from graspstab.replay.grasp_setup import deep_stop, grasp_load
+from graspstab.replay.ramp import RampLoad
+from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
 from graspstab.replay.traces import trace_key
 
@@ -63,22 +63,6 @@ def summarise_replay(
     }
 
 
-def grasp_load(
-    params: dict[str, Any], scene: Any, gravity_hand: np.ndarray, object_id: str, grasp_id: int
-) -> RampLoad | None:
-    """The load ramp of one grasp (simulation frame = hand frame), or None under gravity alone
-    (3.2, the reference's protocol). The direction is drawn from the grasp's own stream."""
-    if params["protocol"] == "gravity":
-        return None
-    ramp = params["ramp"]
-    seq = np.random.SeedSequence([int(ramp["seed"]), zlib.crc32(object_id.encode()), grasp_id])
-    direction = ramp_direction(ramp["directions"], gravity_hand, np.random.default_rng(seq))
-    weight = float(scene.model.body_subtreemass[scene.object_body]) * float(
-        np.linalg.norm(gravity_hand)
-    )
-    return ramp_load(ramp, direction, weight, float(params["timestep"]))
-
-
 def ramp_summary(load: RampLoad, traces: dict[str, np.ndarray], dt: float) -> dict[str, Any]:
     """Per-grasp load-ramp columns: the largest load it carried and, under the ``hold`` path, when
     and at what load the object first slid (NaN if it never did), loads in units of m g."""
@@ -90,15 +74,6 @@ def ramp_summary(load: RampLoad, traces: dict[str, np.ndarray], dt: float) -> di
         "ramp_slip_load_mg": float(applied[load.slip_step]) / load.weight
         if slid and load.slip_step < len(applied) else np.nan,
     }  # fmt: skip
-
-
-def deep_stop(params: dict[str, Any]) -> DeepStop | None:
-    """The ``too_deep`` stop rule of ``params["deep_stop"]`` in steps (None when disabled)."""
-    rule, dt = params["deep_stop"], float(params["timestep"])
-    if not rule["enabled"]:
-        return None
-    return DeepStop(float(rule["depth"]), max(1, round(float(rule["seconds"]) / dt)),
-                    round(float(rule["after_s"]) / dt))  # fmt: skip
 
 
 def replay_grasps(

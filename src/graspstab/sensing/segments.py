@@ -10,7 +10,7 @@ import numpy as np
 import polars as pl
 
 from graspstab.common.errors import GraspstabError
-from graspstab.labels.label_windows import CHANNELS
+from graspstab.labels.dataset import CHANNELS
 from graspstab.labels.trace_windows import grasps_of
 
 

@@ -15,7 +15,7 @@ from hydra import compose, initialize_config_dir
 
 from graspstab.config import load_config
 from graspstab.config.compose import compose_config
-from graspstab.config.reference import COMMAND, MISSING, NO_DESCRIPTION, get, render
+from graspstab.config.docs import COMMAND, MISSING, NO_DESCRIPTION, get, render
 from graspstab.config.show import parse_snakemake_config
 
 REPO = Path(__file__).resolve().parents[1]
@@ -78,9 +78,11 @@ def _schema_leaf_paths(node: dict[str, Any], schema: dict[str, Any], path: str =
         yield from _schema_leaf_paths(extra, schema, f"{path}.<*>")
 
 
-def _cli(*args: str, cwd: Path = REPO) -> subprocess.CompletedProcess[str]:
+def _cli(
+    *args: str, cwd: Path = REPO, module: str = "graspstab.config"
+) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "graspstab.config", *args],
+        [sys.executable, "-m", module, *args],
         cwd=cwd,
         capture_output=True,
         text=True,
@@ -308,7 +310,20 @@ def test_bad_values_are_one_line_and_exit_2(args, words):
     assert words in lines[0]
 
 
-def test_outside_the_repository_says_where_to_run(tmp_path):
-    out = _cli("reference", cwd=tmp_path)
+@pytest.mark.parametrize(
+    ("module", "args"), [("graspstab.config", ["show"]), ("graspstab.config.docs", [])]
+)
+def test_outside_the_repository_says_where_to_run(tmp_path, module, args):
+    out = _cli(*args, cwd=tmp_path, module=module)
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert "repository root" in out.stderr and "--config-dir" in out.stderr
+
+
+def test_the_docs_tool_writes_the_page(page):
+    """The page's own command (COMMAND, in its header) prints it, and only the docs tool does:
+    the runtime CLI has no page to print."""
+    assert COMMAND == "python -m graspstab.config.docs > docs/configuration.md"
+    out = _cli(module="graspstab.config.docs")
+    assert out.returncode == 0, out.stderr
+    assert out.stdout == page
+    assert _cli("reference").returncode == 2  # argparse: not a subcommand of the runtime CLI

@@ -27,7 +27,7 @@ from omegaconf.errors import OmegaConfBaseException
 from graspstab.config.errors import ConfigError
 from graspstab.config.validate import load_schema
 
-COMMAND = "python -m graspstab.config reference > docs/configuration.md"
+COMMAND = "python -m graspstab.config.docs > docs/configuration.md"
 MISSING: Any = object()
 NO_DESCRIPTION = "*No description yet.*"
 # A group option a profile chooses that changes more keys than this (an object set) gets one
@@ -878,3 +878,30 @@ def render(config_dir: str | Path, schema_path: str | Path) -> str:
 def _rows_table(rows: list[Row]) -> list[str]:
     cells = [[f"`{r.path}`", text(r.type), r.default, text(r.description)] for r in rows]
     return table(["Key", "Type", "Default", "Description"], cells)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the reference page; a configuration error is one line on stderr and exit status 2."""
+    import argparse
+    import sys
+
+    from graspstab.config.show import locate
+
+    parser = argparse.ArgumentParser(prog="python -m graspstab.config.docs", description=__doc__)
+    parser.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
+    parser.add_argument(
+        "--schema",
+        help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
+    )
+    args = parser.parse_args(argv)
+    try:
+        sys.stdout.write(render(*locate(args.config_dir, args.schema)))
+    except ConfigError as exc:
+        message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"graspstab configuration error: {message}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
