@@ -23,19 +23,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     show.add_argument("entries", nargs="*", metavar="KEY=VALUE", help="as for snakemake --config")
     show.add_argument("--key", help="print only this subtree (dotted path, e.g. train.threshold)")
-    show.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
-    show.add_argument(
-        "--schema",
-        help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
-    )
+    show_mod.add_location_args(show)
     args = parser.parse_args(argv)
     try:
         config_dir, schema = show_mod.locate(args.config_dir, args.schema)
         cfg = show_mod.resolved(config_dir, schema, args.entries)
         sys.stdout.write(show_mod.dump(show_mod.subtree(cfg, args.key) if args.key else cfg))
     except ConfigError as exc:
-        message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        print(f"graspstab configuration error: {message}", file=sys.stderr)
+        print(show_mod.error_line(exc), file=sys.stderr)
         return 2
     return 0
 

@@ -885,20 +885,15 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
     import sys
 
-    from graspstab.config.show import locate
+    from graspstab.config.show import add_location_args, error_line, locate
 
     parser = argparse.ArgumentParser(prog="python -m graspstab.config.docs", description=__doc__)
-    parser.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
-    parser.add_argument(
-        "--schema",
-        help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
-    )
+    add_location_args(parser)
     args = parser.parse_args(argv)
     try:
         sys.stdout.write(render(*locate(args.config_dir, args.schema)))
     except ConfigError as exc:
-        message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        print(f"graspstab configuration error: {message}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     return 0
 

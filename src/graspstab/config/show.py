@@ -40,6 +40,21 @@ def locate(config_dir: str | Path | None, schema: str | Path | None) -> tuple[Pa
     return cdir, spath
 
 
+def add_location_args(parser: Any) -> None:
+    """The --config-dir and --schema options of every command that reads the config tree."""
+    parser.add_argument("--config-dir", help="the Hydra config tree (default: ./config)")
+    parser.add_argument(
+        "--schema",
+        help="the schema (default: workflow/schemas/config.schema.yaml beside the config tree)",
+    )
+
+
+def error_line(exc: Exception) -> str:
+    """A configuration error as the one line a command prints on stderr."""
+    message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+    return f"graspstab configuration error: {message}"
+
+
 def resolved(config_dir: Path, schema: Path, entries: list[str]) -> dict[str, Any]:
     """Compose, resolve and validate as the Snakefile does (asset files are not checked)."""
     cfg = parse_snakemake_config(entries)
