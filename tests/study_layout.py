@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from graspstab.learning.artefacts import StudyArtefacts
+from graspstab.figures.artefacts import StudyArtefacts
 
 FAMILIES = ("cnn", "gru", "lstm")
 

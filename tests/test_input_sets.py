@@ -13,10 +13,10 @@ import yaml
 from conftest import CONFIG_DIR
 from synthetic_replays import labelled_replays
 
+from graspstab.evaluation.studies import load_checkpoint
 from graspstab.labels.dataset import load_windows
 from graspstab.labels.input_sets import InputSetError, build_input_dataset, features
 from graspstab.learning.models import build_model, count_parameters
-from graspstab.learning.studies import load_checkpoint
 from graspstab.replay.traces import trace_key
 
 LABELS = yaml.safe_load((CONFIG_DIR / "labels" / "default.yaml").read_text())

@@ -17,7 +17,7 @@ import yaml
 from PIL import Image
 
 from graspstab.common.io import load_npz, read_json, write_json, write_parquet
-from graspstab.learning.proxy import friction_ratio
+from graspstab.evaluation.proxy import friction_ratio
 from graspstab.learning.train_model import train_model
 from graspstab.monitor.constants import MonitorConstants, MonitorError
 from graspstab.monitor.episodes import summarise_episodes

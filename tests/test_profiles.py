@@ -155,7 +155,7 @@ def test_wide_profile_tests_every_object_once_per_family_and_protocol(bare_env, 
     x seed, each fold job's assignment testing its own fold's objects only, and the report asks
     for both protocols' study artefacts."""
     from graspstab.config import load_config
-    from graspstab.learning.folds import kfold_assignments
+    from graspstab.evaluation.folds import kfold_assignments
 
     cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "wide"}, check_files=False)
     cv = cfg["crossval"]

@@ -27,14 +27,14 @@ from PIL import Image  # noqa: E402
 
 from graspstab.common.io import read_json, write_json, write_parquet  # noqa: E402
 from graspstab.config import load_config  # noqa: E402
-from graspstab.learning import aggregate, studies  # noqa: E402
-from graspstab.learning.metrics import (  # noqa: E402
+from graspstab.evaluation import aggregate, studies  # noqa: E402
+from graspstab.figures.presentation import LEARNING_FIGURES  # noqa: E402
+from graspstab.metrics.classification import (  # noqa: E402
     binary_metrics,
     per_object_metrics,
     select_threshold,
     threshold_grid,
 )
-from graspstab.learning.presentation import LEARNING_FIGURES  # noqa: E402
 from graspstab.report import dag  # noqa: E402
 from graspstab.report.funnel import funnel  # noqa: E402
 from graspstab.report.headline import (  # noqa: E402
@@ -686,7 +686,7 @@ def test_report_renders_in_headless_chromium(browser: Any, report_html: Path) ->
 
 def test_benchmark_inputs_match_the_dag(snakemake_graphs: dict[str, Path]) -> None:
     """The report's explicit benchmark list names exactly one file per job of the DAG."""
-    from graspstab.learning.splits import sample_assignments
+    from graspstab.evaluation.splits import sample_assignments
     from graspstab.report.inputs import benchmark_wildcards
 
     config = load_config(REPO / "config", SCHEMA, check_files=False)

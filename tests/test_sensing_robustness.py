@@ -14,13 +14,13 @@ import yaml
 from conftest import CONFIG_DIR
 from synthetic_replays import labelled_replays
 
+from graspstab.evaluation.proxy import friction_ratio, proxy_metrics
+from graspstab.evaluation.robustness import conditions, evaluate_robustness
 from graspstab.labels.dataset import load_windows
 from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
-from graspstab.learning.metrics import binary_metrics
 from graspstab.learning.models import build_model
-from graspstab.learning.proxy import friction_ratio, proxy_metrics
-from graspstab.learning.robustness import conditions, evaluate_robustness
+from graspstab.metrics.classification import binary_metrics
 from graspstab.replay.traces import trace_key
 from graspstab.sensing.segments import SegmentError, window_segments
 
@@ -116,8 +116,8 @@ def test_robustness_figure_draws_curves_and_says_when_undefined(
     """A defined table: each panel draws the scorers' curves and the chance line. An undefined
     AUPRC (NaN, JSON null in the study's files): each panel says "AUPRC undefined" and draws no
     curve, chance line or legend; the report's table reads null as undefined, never a number."""
-    from graspstab.learning.figures import robustness
-    from graspstab.learning.presentation import UNDEFINED
+    from graspstab.figures import robustness
+    from graspstab.figures.presentation import UNDEFINED
     from graspstab.report.sensing import condition_table
 
     figures = {}
@@ -274,7 +274,7 @@ def test_condition_table_puts_each_corruption_model_on_its_own_rows() -> None:
 
 
 def test_robustness_figure_draws_a_corruption_model_in_its_panel_only(tmp_path: Path) -> None:
-    from graspstab.learning.figures import robustness
+    from graspstab.figures import robustness
 
     table = pl.DataFrame([{**{k: r[k] for k in ("kind", "corruption", "strength", "family",
                                                  "training")}, "seed": 1, "auprc": r["auprc_mean"]}

@@ -12,8 +12,8 @@ import graspstab
 # and nothing later. ``common`` is below everything; ``config`` checks object ids against the
 # asset catalogue, so it sits above ``assets``.
 STAGES = [
-    "common", "assets", "config", "objects", "hand", "synthesis", "replay", "labels", "sensing",
-    "learning", "monitor", "closedloop", "report",
+    "common", "metrics", "assets", "config", "objects", "hand", "synthesis", "replay", "labels",
+    "sensing", "learning", "evaluation", "figures", "monitor", "closedloop", "report",
 ]  # fmt: skip
 ROOT = Path(graspstab.__file__).resolve().parent
 

@@ -4,7 +4,7 @@ import functools
 from pathlib import Path
 
 from graspstab.common.units import ms_of
-from graspstab.learning.splits import sample_assignments
+from graspstab.evaluation.splits import sample_assignments
 from graspstab.replay import protocols
 from graspstab.replay.protocols import replay_params
 from graspstab.sensing.conditions import training_label

@@ -174,7 +174,7 @@ use rule plot_monitor as plot_monitor_creep_free with:
 
 
 # What the report's side-by-side section reads, as named inputs creep_free_<artefact>; the
-# studies' ones are named study_<field of graspstab.learning.artefacts.StudyArtefacts>.
+# studies' ones are named study_<field of graspstab.figures.artefacts.StudyArtefacts>.
 CREEP_FREE_ARTEFACTS = {
     "dataset": rules.label_windows_creep_free.output.summary,
     "speeds": rules.plot_unstable_speeds_creep_free.output.summary,

@@ -4,7 +4,7 @@
 # protocol x variant x family x fold x seed on the sweep's same-end dataset at crossval.window_s;
 # one aggregation per protocol scores the friction-ratio proxy and the paired comparisons.
 
-from graspstab.learning.folds import kfold_assignments
+from graspstab.evaluation.folds import kfold_assignments
 
 CV = config["crossval"]
 CV_MS = ms_of(CV["window_s"])
@@ -24,7 +24,7 @@ wildcard_constraints:
 
 @functools.cache
 def fold_assignments():
-    """The k folds' object -> split assignments (graspstab.learning.folds)."""
+    """The k folds' object -> split assignments (graspstab.evaluation.folds)."""
     return kfold_assignments(object_ids(), CV["k"], CV["fold_seed"], CV["val_folds"])
 
 

@@ -89,7 +89,7 @@ rule report:
         pregrasp=rules.plot_grasps.output.pregrasp,
         gallery=rules.plot_grasps.output.gallery,
         histograms=rules.plot_grasps.output.histograms,
-        # the studies' artefacts (graspstab.learning.artefacts), named study_<artefact>
+        # the studies' artefacts (graspstab.figures.artefacts), named study_<artefact>
         **{f"study_{k}": v for k, v in STUDY_ARTEFACTS.items()},
         learning_figures=rules.plot_learning.output,
         # the streaming monitor's grasp-level summary, figures and exports, named monitor_<artefact>

@@ -5,7 +5,7 @@
 # get the studies' artefacts as named inputs (STUDY_ARTEFACTS) and read only those.
 
 # The one list of learning figures (name -> file), shared with the figures and the report.
-from graspstab.learning.presentation import FIGURES as LEARNING_FIGURE_FILES
+from graspstab.figures.presentation import FIGURES as LEARNING_FIGURE_FILES
 
 
 wildcard_constraints:
@@ -226,7 +226,7 @@ rule studies:
         expand("results/tune/{model}/best.json", model=MODELS),
 
 
-# The studies' artefacts as named inputs (graspstab.learning.artefacts.StudyArtefacts): the
+# The studies' artefacts as named inputs (graspstab.figures.artefacts.StudyArtefacts): the
 # aggregate tables and summaries, latency, proxy and the tuned best configurations (best_<model>).
 STUDY_ARTEFACTS = {
     **{f"baseline_{k}": v for k, v in rules.aggregate_baseline.output.items()},

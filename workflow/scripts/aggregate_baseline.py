@@ -1,7 +1,7 @@
-"""Snakemake wrapper: the fixed-task benchmark's study tables (graspstab.learning.studies, 4.3)."""
+"""Snakemake wrapper: the fixed-task benchmark's study tables (evaluation.studies, 4.3)."""
 
 from graspstab.common.jobs import job
-from graspstab.learning import studies
+from graspstab.evaluation import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

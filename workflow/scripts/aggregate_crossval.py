@@ -1,11 +1,11 @@
-"""Snakemake wrapper: the k-fold study of one protocol (graspstab.learning.studies); object size
+"""Snakemake wrapper: the k-fold study of one protocol (graspstab.evaluation.studies); object size
 is the largest extent of each object's preprocessed mesh (its meta.json)."""
 
 from pathlib import Path
 
 from graspstab.common.io import read_json
 from graspstab.common.jobs import job
-from graspstab.learning import studies
+from graspstab.evaluation import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

@@ -1,7 +1,7 @@
-"""Snakemake wrapper: the input audit's table (graspstab.learning.studies)."""
+"""Snakemake wrapper: the input audit's table (graspstab.evaluation.studies)."""
 
 from graspstab.common.jobs import job
-from graspstab.learning import studies
+from graspstab.evaluation import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

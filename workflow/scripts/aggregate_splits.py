@@ -1,7 +1,7 @@
-"""Snakemake wrapper: the split-robustness study tables (graspstab.learning.studies, 4.4)."""
+"""Snakemake wrapper: the split-robustness study tables (graspstab.evaluation.studies, 4.4)."""
 
 from graspstab.common.jobs import job
-from graspstab.learning import studies
+from graspstab.evaluation import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

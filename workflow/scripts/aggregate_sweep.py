@@ -1,7 +1,7 @@
-"""Snakemake wrapper: the window-length sweep's study tables (graspstab.learning.studies, 4.5)."""
+"""Snakemake wrapper: the window-length sweep's study tables (graspstab.evaluation.studies, 4.5)."""
 
 from graspstab.common.jobs import job
-from graspstab.learning import studies
+from graspstab.evaluation import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

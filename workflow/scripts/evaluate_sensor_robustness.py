@@ -1,10 +1,10 @@
-"""Snakemake wrapper: the sensor-robustness study (graspstab.learning.robustness); the dataset
+"""Snakemake wrapper: the sensor-robustness study (graspstab.evaluation.robustness); the dataset
 folder is the one holding the rule's declared index, windows and statistics."""
 
 from pathlib import Path
 
 from graspstab.common.jobs import job
-from graspstab.learning.robustness import evaluate_robustness
+from graspstab.evaluation.robustness import evaluate_robustness
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

@@ -1,7 +1,7 @@
-"""Snakemake wrapper: CPU batch-1 latency of the checkpoints (graspstab.learning.studies, 4.5)."""
+"""Snakemake wrapper: CPU batch-1 latency of the checkpoints (graspstab.evaluation.studies, 4.5)."""
 
 from graspstab.common.jobs import job
-from graspstab.learning import studies
+from graspstab.evaluation import studies
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

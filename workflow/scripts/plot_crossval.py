@@ -1,11 +1,11 @@
-"""Snakemake wrapper: the k-fold study's per-object figure (graspstab.learning.figures.crossval)."""
+"""Snakemake wrapper: the k-fold study's per-object figure (graspstab.figures.crossval)."""
 
 from pathlib import Path
 
 from graspstab.common.io import read_json, read_parquet
 from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
-from graspstab.learning.figures.crossval import plot_crossval
+from graspstab.figures.crossval import plot_crossval
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

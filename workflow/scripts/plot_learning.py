@@ -1,10 +1,10 @@
-"""Snakemake wrapper: the chapter-4 figures of the learning studies (graspstab.learning.figures),
+"""Snakemake wrapper: the chapter-4 figures of the learning studies (graspstab.figures),
 drawn from the rule's named inputs only and written to its named outputs."""
 
 from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
-from graspstab.learning.artefacts import StudyArtefacts
-from graspstab.learning.figures import plot_learning
+from graspstab.figures.artefacts import StudyArtefacts
+from graspstab.figures.entry import plot_learning
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

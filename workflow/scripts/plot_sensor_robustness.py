@@ -1,11 +1,11 @@
-"""Snakemake wrapper: the sensor-robustness curves (graspstab.learning.figures.robustness)."""
+"""Snakemake wrapper: the sensor-robustness curves (graspstab.figures.robustness)."""
 
 from pathlib import Path
 
 from graspstab.common.io import read_json, read_parquet
 from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
-from graspstab.learning.figures.robustness import plot_robustness
+from graspstab.figures.robustness import plot_robustness
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 with job(sm):

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
-from graspstab.learning.artefacts import StudyArtefacts
+from graspstab.figures.artefacts import StudyArtefacts
 from graspstab.report.write_report import write_report
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)

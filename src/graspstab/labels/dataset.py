@@ -14,6 +14,9 @@ import polars as pl
 from graspstab.common.io import load_npy
 
 CHANNELS = ("normal", "shear")
+#: Where each channel sits in the windows' last axis (N, W, fingertips, channel).
+NORMAL_CHANNEL = CHANNELS.index("normal")
+SHEAR_CHANNEL = CHANNELS.index("shear")
 
 
 def normalisation(windows: np.ndarray, index: pl.DataFrame, eps: float = 1e-6) -> dict[str, Any]:

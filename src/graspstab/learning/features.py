@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from graspstab.learning.proxy import NORMAL_CHANNEL, SHEAR_CHANNEL
+from graspstab.labels.dataset import NORMAL_CHANNEL, SHEAR_CHANNEL
 
 Transform = Callable[[np.ndarray], np.ndarray]
 

@@ -24,7 +24,7 @@ from torch import nn
 
 from graspstab.learning.data import WindowData
 from graspstab.learning.device import Placement, on_device, resolve
-from graspstab.learning.metrics import binary_metrics
+from graspstab.metrics.classification import binary_metrics
 
 log = logging.getLogger("graspstab.learning")
 

@@ -25,7 +25,9 @@ from graspstab.common.provenance import code_version, compute_platform, stable_h
 from graspstab.learning.augmentation import attach
 from graspstab.learning.data import WindowData, load_window_data
 from graspstab.learning.features import window_transform
-from graspstab.learning.metrics import (
+from graspstab.learning.models import build_model, count_parameters
+from graspstab.learning.train import TrainSettings, fit, predict_logits, sigmoid
+from graspstab.metrics.classification import (
     METRIC_KEYS,
     UNDEFINED_THRESHOLD,
     ThresholdChoice,
@@ -34,8 +36,6 @@ from graspstab.learning.metrics import (
     select_threshold,
     threshold_grid,
 )
-from graspstab.learning.models import build_model, count_parameters
-from graspstab.learning.train import TrainSettings, fit, predict_logits, sigmoid
 
 log = logging.getLogger("graspstab.learning")
 

@@ -1,10 +1,10 @@
 """The friction-ratio proxy (4.7) as a monitor, with its own validation-selected threshold.
 
 The proxy scores a window by the shear-to-normal load ratio at its last frame
-(``learning.proxy.friction_ratio``), so as a monitor it needs a window of one frame. Its ratio is
+(``evaluation.proxy.friction_ratio``), so as a monitor it needs a window of one frame. Its ratio is
 unbounded; the monitor's decision rule (``prob >= threshold``, a threshold in [0, 1]) takes it
 through the monotone map ``p = r / (1 + r)``, which changes no ranking. The threshold is chosen
-the way the models' are (3.5.3, ``learning.metrics.select_threshold`` with the run's rule and
+the way the models' are (3.5.3, ``metrics.classification.select_threshold`` with the run's rule and
 recall target), on the validation windows' scores, over every distinct validation score rather
 than the models' 0.05-0.95 grid (a ratio of a few tenths maps to p ~ 0.1-0.3, where that grid is
 coarse). It is reported in ratio units too.
@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from graspstab.learning.metrics import select_threshold
-from graspstab.learning.proxy import friction_ratio
+from graspstab.evaluation.proxy import friction_ratio
+from graspstab.metrics.classification import select_threshold
 from graspstab.monitor.constants import FRAME_SHAPE, MonitorConstants
 from graspstab.monitor.scoring import check_windows
 

@@ -14,8 +14,8 @@ from typing import Any
 import polars as pl
 
 from graspstab.common.io import read_json, read_parquet
-from graspstab.learning.artefacts import StudyArtefacts
-from graspstab.learning.presentation import UNDEFINED, family_label, finite
+from graspstab.figures.artefacts import StudyArtefacts
+from graspstab.figures.presentation import UNDEFINED, family_label, finite
 from graspstab.report import html as H
 from graspstab.report.headline import Figure, baseline_figure, proxy_figure, sweep_figure
 

@@ -1,6 +1,6 @@
 """The report's "Generalisation across objects" section: the object-level k-fold study of each
 protocol (folds, pooled and per-object tables, the figure, the paired comparisons and the
-one-sentence answers), read from graspstab.learning.studies.aggregate_crossval's files."""
+one-sentence answers), read from graspstab.evaluation.studies.aggregate_crossval's files."""
 
 from __future__ import annotations
 

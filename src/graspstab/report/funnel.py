@@ -15,7 +15,7 @@ from typing import Any
 import polars as pl
 
 from graspstab.common.io import read_parquet
-from graspstab.learning.presentation import UNDEFINED
+from graspstab.figures.presentation import UNDEFINED
 from graspstab.report import html as H
 
 SPLITS = ("train", "val", "test")

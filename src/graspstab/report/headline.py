@@ -14,8 +14,8 @@ from typing import Any
 import polars as pl
 
 from graspstab.common.io import read_json, read_parquet
-from graspstab.learning.artefacts import StudyArtefacts
-from graspstab.learning.presentation import (
+from graspstab.figures.artefacts import StudyArtefacts
+from graspstab.figures.presentation import (
     SPLIT_NAMES,
     UNDEFINED,
     defined_summary,

@@ -1,7 +1,7 @@
 """The learning section of the report (thesis chapter 4): our study results beside the
 reference's published numbers, the threshold-rule warning, and the chapter's figures.
 
-Every table reads one study artefact of the :class:`~graspstab.learning.artefacts.StudyArtefacts`
+Every table reads one study artefact of the :class:`~graspstab.figures.artefacts.StudyArtefacts`
 it is given (no other file); a missing artefact gives a note instead of the table. NaN (an
 undefined metric, e.g. validation AUPRC when the validation split holds no unstable window)
 renders as "undefined". The tables live in :mod:`graspstab.report.learning_tables` and
@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from graspstab.common.io import read_json, read_parquet
-from graspstab.learning.artefacts import StudyArtefacts, exists, record, splits_family, table
-from graspstab.learning.presentation import LEARNING_FIGURES, defined_summary
+from graspstab.figures.artefacts import StudyArtefacts, exists, record, splits_family, table
+from graspstab.figures.presentation import LEARNING_FIGURES, defined_summary
 from graspstab.report import html as H
 from graspstab.report.learning_tables import (
     baseline_table,
@@ -234,7 +234,7 @@ def learning_section(
 ) -> str:
     """The report's chapter-4 section: tables of every study beside the thesis's numbers, the
     threshold-rule warning, and the figures of rule ``plot_learning`` (``figures``: name -> PNG,
-    names of :data:`~graspstab.learning.presentation.LEARNING_FIGURES`; an absent one leaves a
+    names of :data:`~graspstab.figures.presentation.LEARNING_FIGURES`; an absent one leaves a
     slot saying so). Reads only the paths of ``artefacts`` and ``figures``."""
     unknown = sorted(set(figures) - set(LEARNING_FIGURES))
     if unknown:

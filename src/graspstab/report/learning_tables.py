@@ -11,7 +11,7 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.learning.presentation import (
+from graspstab.figures.presentation import (
     METRIC_NAMES,
     METRICS,
     SPLIT_NAMES,

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from graspstab.common.io import read_json
-from graspstab.learning.presentation import UNDEFINED, family_label, finite
+from graspstab.figures.presentation import UNDEFINED, family_label, finite
 from graspstab.report import html as H
 
 SPLITS = ("test", "val")

@@ -29,8 +29,8 @@ import polars as pl
 
 from graspstab.common.io import read_json, read_parquet, write_text
 from graspstab.common.provenance import cpu_model
-from graspstab.learning.artefacts import StudyArtefacts
-from graspstab.learning.presentation import family_label, finite
+from graspstab.figures.artefacts import StudyArtefacts
+from graspstab.figures.presentation import family_label, finite
 from graspstab.report.headline import (
     HEADLINE,
     baseline_figure,

@@ -10,7 +10,7 @@ from typing import Any
 import polars as pl
 
 from graspstab.common.io import read_json, read_parquet
-from graspstab.learning.presentation import UNDEFINED, family_label, finite
+from graspstab.figures.presentation import UNDEFINED, family_label, finite
 from graspstab.report import html as H
 from graspstab.report.learning_tables import REFERENCE_PARAMETERS
 

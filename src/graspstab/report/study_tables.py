@@ -8,7 +8,7 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.learning.presentation import family_label, ordered_families, rows_by
+from graspstab.figures.presentation import family_label, ordered_families, rows_by
 from graspstab.report import html as H
 from graspstab.report.learning_tables import note, num, pct
 

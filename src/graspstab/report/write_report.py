@@ -14,8 +14,8 @@ import polars as pl
 import graspstab
 from graspstab.common.io import read_json, read_parquet, write_text
 from graspstab.common.provenance import stable_hash
-from graspstab.learning.artefacts import StudyArtefacts
-from graspstab.learning.presentation import UNDEFINED, finite
+from graspstab.figures.artefacts import StudyArtefacts
+from graspstab.figures.presentation import UNDEFINED, finite
 from graspstab.report import dag
 from graspstab.report import html as H
 from graspstab.report.closed_loop import closed_loop_section

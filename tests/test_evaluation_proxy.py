@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from graspstab.learning.proxy import friction_ratio, proxy_metrics
+from graspstab.evaluation.proxy import friction_ratio, proxy_metrics
 
 W, F = 12, 5
 

@@ -21,12 +21,12 @@ import torch
 
 from graspstab.common.io import write_json, write_parquet
 from graspstab.common.logs import setup_logging
+from graspstab.evaluation.proxy import friction_ratio, proxy_metrics
+from graspstab.evaluation.studies import load_checkpoint
 from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
-from graspstab.learning.metrics import binary_metrics
-from graspstab.learning.proxy import friction_ratio, proxy_metrics
-from graspstab.learning.studies import load_checkpoint
 from graspstab.learning.train import sigmoid
+from graspstab.metrics.classification import binary_metrics
 from graspstab.sensing.conditions import conditions
 from graspstab.sensing.segments import window_segments
 from graspstab.sensing.sensor_model import sense

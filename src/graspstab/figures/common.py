@@ -18,7 +18,7 @@ import polars as pl  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from graspstab.common.io import save_figure  # noqa: E402
-from graspstab.learning.presentation import UNDEFINED, as_float, family_label, finite  # noqa: E402
+from graspstab.figures.presentation import UNDEFINED, as_float, family_label, finite  # noqa: E402
 
 FAMILY_COLOURS = {"cnn": "#1f77b4", "gru": "#ff7f0e", "lstm": "#2ca02c"}
 PCT_LABEL = "score [%], mean ± std over seeds"

@@ -12,8 +12,8 @@ from matplotlib.colors import to_rgba
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from graspstab.learning.figures.common import colour, draw_bars, finish_bars, no_data, plt, save
-from graspstab.learning.presentation import as_float, family_label, finite, object_label
+from graspstab.figures.common import colour, draw_bars, finish_bars, no_data, plt, save
+from graspstab.figures.presentation import as_float, family_label, finite, object_label
 
 
 def _assignment_label(row: Mapping[str, Any]) -> str:

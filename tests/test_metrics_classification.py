@@ -20,7 +20,7 @@ from sklearn.metrics import (
     roc_auc_score,
 )
 
-from graspstab.learning.metrics import (
+from graspstab.metrics.classification import (
     METRIC_KEYS,
     ThresholdChoice,
     binary_metrics,

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.learning.figures.common import (
+from graspstab.figures.common import (
     annotate,
     colour,
     draw_bars,
@@ -18,7 +18,7 @@ from graspstab.learning.figures.common import (
     save,
     stat,
 )
-from graspstab.learning.presentation import as_float, family_label, ordered_families, rows_by
+from graspstab.figures.presentation import as_float, family_label, ordered_families, rows_by
 
 
 def plot_proxy(proxy: Mapping[str, Any], summary: pl.DataFrame, out: Path, dpi: int) -> Path:

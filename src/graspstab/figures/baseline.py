@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.learning.figures.common import (
+from graspstab.figures.common import (
     PCT_LABEL,
     grouped_bars,
     legend_and_title,
@@ -20,7 +20,7 @@ from graspstab.learning.figures.common import (
     seed_note,
     stat,
 )
-from graspstab.learning.presentation import (
+from graspstab.figures.presentation import (
     FAMILY_ORDER,
     METRIC_LABELS,
     RANKING_METRICS,

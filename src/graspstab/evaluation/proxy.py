@@ -15,11 +15,8 @@ from typing import Any
 import numpy as np
 from sklearn.metrics import average_precision_score, roc_auc_score
 
-from graspstab.learning.metrics import check_scored
-
-#: Channel layout of the raw windows (N, W, fingertips, 2), as written by the labelling stage.
-NORMAL_CHANNEL = 0
-SHEAR_CHANNEL = 1
+from graspstab.labels.dataset import NORMAL_CHANNEL, SHEAR_CHANNEL
+from graspstab.metrics.classification import check_scored
 
 
 def friction_ratio(windows: Any, eps: float = 1e-9) -> np.ndarray:

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.learning.figures.common import colour, plt, save
+from graspstab.figures.common import colour, plt, save
 
 SHAPES = ["box", "cylinder", "round", "flat", "irregular", "unclassified"]
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from graspstab.learning.figures.common import colour, no_data, plt, save
-from graspstab.learning.presentation import family_label
+from graspstab.figures.common import colour, no_data, plt, save
+from graspstab.figures.presentation import family_label
 
 #: Axis label of each corruption's strength (config group sensing, curves).
 STRENGTH_LABELS = {

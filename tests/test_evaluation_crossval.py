@@ -10,10 +10,10 @@ import pytest
 from sklearn.metrics import average_precision_score, roc_auc_score
 
 from graspstab.config import ConfigError, load_config
-from graspstab.learning import crossval as cv
+from graspstab.evaluation import crossval as cv
+from graspstab.evaluation.folds import deal_folds, kfold_assignments
 from graspstab.learning.data import transformed_statistics
 from graspstab.learning.features import gain_normalise, ratio_channel, window_transform
-from graspstab.learning.folds import deal_folds, kfold_assignments
 from tests.conftest import CONFIG_DIR, SCHEMA
 
 OBJECTS = [f"{i:03d}_obj" for i in range(44)]
@@ -194,8 +194,8 @@ def test_the_study_from_fold_predictions_to_the_report_section(tmp_path):
     whose windows carry a weak friction-ratio signal: the learned scorer must beat the proxy, the
     figure and the report section must be written from the files alone."""
     from graspstab.common.io import read_json, read_parquet, save_npy, write_json, write_parquet
-    from graspstab.learning import studies
-    from graspstab.learning.figures.crossval import plot_crossval
+    from graspstab.evaluation import studies
+    from graspstab.figures.crossval import plot_crossval
     from graspstab.report.crossval import crossval_section
 
     rng = np.random.default_rng(5)

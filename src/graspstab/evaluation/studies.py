@@ -14,12 +14,12 @@ import torch
 
 from graspstab.common.io import read_json, read_parquet, write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.learning import aggregate
-from graspstab.learning import crossval as cv
+from graspstab.evaluation import aggregate
+from graspstab.evaluation import crossval as cv
+from graspstab.evaluation.latency import measure_latency
+from graspstab.evaluation.proxy import friction_ratio, proxy_metrics
 from graspstab.learning.data import load_window_data
-from graspstab.learning.latency import measure_latency
 from graspstab.learning.models import build_model
-from graspstab.learning.proxy import friction_ratio, proxy_metrics
 
 log = logging.getLogger("graspstab.learning")
 
@@ -217,7 +217,7 @@ def aggregate_crossval(
     out_dir: str | Path,
     log_file: str | Path | None = None,
 ) -> dict[str, Any]:
-    """Object-level k-fold study of one protocol (graspstab.learning.crossval): per-object,
+    """Object-level k-fold study of one protocol (graspstab.evaluation.crossval): per-object,
     pooled and per-fold test metrics of every learned scorer and the friction-ratio proxy, and
     the paired learned-against-proxy comparisons over objects; what each fairness variant
     changes against its plain family; every scorer's thresholded test metrics. ``metrics``: each

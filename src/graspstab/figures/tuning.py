@@ -11,8 +11,8 @@ import polars as pl
 from matplotlib.ticker import MaxNLocator
 from matplotlib.transforms import blended_transform_factory
 
-from graspstab.learning.figures.common import no_data, plt, save
-from graspstab.learning.presentation import (
+from graspstab.figures.common import no_data, plt, save
+from graspstab.figures.presentation import (
     FAMILY_ORDER,
     METRIC_LABELS,
     family_label,

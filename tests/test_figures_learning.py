@@ -16,15 +16,18 @@ import polars as pl
 import pytest
 
 from graspstab.common.io import write_json, write_parquet
-from graspstab.learning import figures, studies
-from graspstab.learning.artefacts import StudyArtefacts
-from graspstab.learning.metrics import (
+from graspstab.evaluation import studies
+from graspstab.figures import common as fig_common
+from graspstab.figures import entry as fig_entry
+from graspstab.figures import sweep as fig_sweep
+from graspstab.figures.artefacts import StudyArtefacts
+from graspstab.figures.presentation import FIGURES, LEARNING_FIGURES
+from graspstab.metrics.classification import (
     binary_metrics,
     per_object_metrics,
     select_threshold,
     threshold_grid,
 )
-from graspstab.learning.presentation import FIGURES, LEARNING_FIGURES
 from graspstab.report.learning import CAPTIONS, FIGURE_ANCHORS, learning_section
 from graspstab.report.learning_tables import pct
 from tests.study_layout import study_artefacts
@@ -232,7 +235,7 @@ def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def written(results: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    return figures.plot_learning(
+    return fig_entry.plot_learning(
         study_artefacts(results, first_seed=SEEDS[0]),
         tmp_path_factory.mktemp("figures"),
         60,
@@ -248,9 +251,9 @@ def test_synthetic_tree_has_undefined_validation(results: Path) -> None:
 
 
 def test_every_figure_is_a_nontrivial_png(written: dict[str, Path]) -> None:
-    assert set(written) == set(figures.FIGURES)
+    assert set(written) == set(FIGURES)
     for name, path in written.items():
-        assert path.name == figures.FIGURES[name] and path.exists(), name
+        assert path.name == FIGURES[name] and path.exists(), name
         img = mpimg.imread(path)
         assert img.ndim == 3 and 100 < img.shape[0] < 3000 and 200 < img.shape[1] < 3000, name
         assert np.std(img[..., :3]) > 0.02, f"{name} looks blank"
@@ -258,19 +261,19 @@ def test_every_figure_is_a_nontrivial_png(written: dict[str, Path]) -> None:
 
 def test_missing_artefacts_give_placeholders(tmp_path: Path) -> None:
     for artefacts in (study_artefacts(tmp_path / "empty"), StudyArtefacts()):
-        out = figures.plot_learning(artefacts, tmp_path / "figs", 50, 42)
+        out = fig_entry.plot_learning(artefacts, tmp_path / "figs", 50, 42)
         for path in out.values():
             assert mpimg.imread(path).shape[0] > 50
 
 
 def test_nan_bar_is_marked_undefined() -> None:
-    fig, ax = figures.plt.subplots()
+    fig, ax = fig_common.plt.subplots()
     stats = {"cnn": [(0.9, 0.01), (math.nan, math.nan)], "gru": [(math.nan, math.nan)] * 2}
-    figures.grouped_bars(ax, ["AUROC", "AUPRC"], stats)
+    fig_common.grouped_bars(ax, ["AUROC", "AUPRC"], stats)
     texts = [t.get_text() for t in ax.texts]
     assert texts.count("undefined") == 3
     assert len(ax.patches) == 1  # only the defined bar is drawn
-    figures.plt.close(fig)
+    fig_common.plt.close(fig)
 
 
 def test_operating_points_with_no_defined_auprc(tmp_path: Path) -> None:
@@ -295,7 +298,7 @@ def test_operating_points_with_no_defined_auprc(tmp_path: Path) -> None:
         },
         "best_windows": [],
     }
-    path = figures.plot_operating_points(points, overview, tmp_path / "op.png", 60)
+    path = fig_sweep.plot_operating_points(points, overview, tmp_path / "op.png", 60)
     img = mpimg.imread(path)
     assert 100 < img.shape[0] < 3000 and 200 < img.shape[1] < 3000
 
@@ -304,7 +307,7 @@ def test_section_embeds_figures_references_and_warning(
     results: Path, written: dict[str, Path]
 ) -> None:
     html = learning_section(study_artefacts(results), written, {"profile_name": "quick"})
-    assert html.count('src="data:image/png;base64,') == len(figures.FIGURES)
+    assert html.count('src="data:image/png;base64,') == len(FIGURES)
     for ref in (
         "178,753",
         "171,777",
@@ -346,21 +349,21 @@ def test_figure_names_are_one_list_and_match_the_written_files(
 ) -> None:
     """LEARNING_FIGURES is the figures', the report's and rule plot_learning's list: the files
     plot_learning writes are exactly its names (no stray temporary file of an atomic write)."""
-    assert figures.FIGURES is FIGURES and list(FIGURES) == list(LEARNING_FIGURES)
+    assert fig_entry.FIGURES is FIGURES and list(FIGURES) == list(LEARNING_FIGURES)
     assert set(FIGURE_ANCHORS) == set(CAPTIONS) == set(LEARNING_FIGURES)
     out_dir = {p.parent for p in written.values()}
     assert len(out_dir) == 1
     assert sorted(p.name for p in out_dir.pop().iterdir()) == sorted(FIGURES.values())
     assert {n: p.name for n, p in written.items()} == FIGURES
     train = (Path(__file__).resolve().parents[1] / "workflow" / "rules" / "train.smk").read_text()
-    assert "from graspstab.learning.presentation import FIGURES as LEARNING_FIGURE_FILES" in train
+    assert "from graspstab.figures.presentation import FIGURES as LEARNING_FIGURE_FILES" in train
     assert "LEARNING_FIGURES = [" not in train  # no second list in the workflow
     # named outputs, as the rule gives them: every name, and no other
     named = {n: tmp_path / "named" / f"x_{n}.png" for n in LEARNING_FIGURES}
-    got = figures.plot_learning(StudyArtefacts(), named, 40, 42)
+    got = fig_entry.plot_learning(StudyArtefacts(), named, 40, 42)
     assert got == named and all(p.exists() for p in named.values())
     with pytest.raises(ValueError, match="writes exactly"):
-        figures.plot_learning(StudyArtefacts(), {"benchmark": tmp_path / "b.png"}, 40, 42)
+        fig_entry.plot_learning(StudyArtefacts(), {"benchmark": tmp_path / "b.png"}, 40, 42)
 
 
 def _record_reads(monkeypatch: pytest.MonkeyPatch, roots: list[Path]) -> list[Path]:
@@ -413,7 +416,7 @@ def test_readers_read_only_the_paths_they_are_given(
         }
     )
     reads = _record_reads(monkeypatch, [results, tmp_path])
-    out = figures.plot_learning(given, tmp_path / "figs", 40, SEEDS[0])
+    out = fig_entry.plot_learning(given, tmp_path / "figs", 40, SEEDS[0])
     html = learning_section(given, out, {"profile_name": "quick"})
     assert reads and set(reads) <= _given(given), sorted(set(reads) - _given(given))
     assert (results / "studies" / "latency.parquet").exists()

@@ -3,7 +3,7 @@
 No plotting here (no matplotlib import), so the report reads its names, orders and undefined-value
 rules without pulling in a plotting backend: family names and order, split and metric names, the
 "undefined" marker, the 0/0-as-undefined summary of runs, and the learning figures' names (the one
-list that rule ``plot_learning``, :mod:`graspstab.learning.figures` and the report share).
+list that rule ``plot_learning``, :mod:`graspstab.figures` and the report share).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.learning.aggregate import mean_std
+from graspstab.evaluation.aggregate import mean_std
 
 #: Every learning figure of rule ``plot_learning`` (name -> ``<name>.png``), in thesis order.
 LEARNING_FIGURES = (

@@ -10,9 +10,8 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.learning.figures.common import colour, no_data, plt, save
-from graspstab.learning.metrics import reliability_curve, threshold_curves, threshold_grid
-from graspstab.learning.presentation import (
+from graspstab.figures.common import colour, no_data, plt, save
+from graspstab.figures.presentation import (
     FAMILY_ORDER,
     SPLIT_NAMES,
     as_float,
@@ -20,6 +19,7 @@ from graspstab.learning.presentation import (
     finite,
     ordered_families,
 )
+from graspstab.metrics.classification import reliability_curve, threshold_curves, threshold_grid
 
 Predictions = Mapping[str, tuple[pl.DataFrame, Mapping[str, Any]]]
 

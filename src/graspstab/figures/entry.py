@@ -10,20 +10,20 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.learning.artefacts import StudyArtefacts, record, splits_family, table
-from graspstab.learning.figures.baseline import plot_benchmark, plot_confusion, plot_objects
-from graspstab.learning.figures.common import placeholder
-from graspstab.learning.figures.proxy import plot_proxy
-from graspstab.learning.figures.splits import plot_splits
-from graspstab.learning.figures.sweep import plot_latency, plot_operating_points, plot_sweep
-from graspstab.learning.figures.thresholds import plot_reliability, plot_threshold_transfer
-from graspstab.learning.figures.tuning import plot_tuning
-from graspstab.learning.presentation import (
+from graspstab.figures.artefacts import StudyArtefacts, record, splits_family, table
+from graspstab.figures.baseline import plot_benchmark, plot_confusion, plot_objects
+from graspstab.figures.common import placeholder
+from graspstab.figures.presentation import (
     FIGURES,
     LEARNING_FIGURES,
     defined_summary,
     ordered_families,
 )
+from graspstab.figures.proxy import plot_proxy
+from graspstab.figures.splits import plot_splits
+from graspstab.figures.sweep import plot_latency, plot_operating_points, plot_sweep
+from graspstab.figures.thresholds import plot_reliability, plot_threshold_transfer
+from graspstab.figures.tuning import plot_tuning
 
 log = logging.getLogger("graspstab.learning")
 

@@ -12,7 +12,7 @@ import polars as pl
 from matplotlib.lines import Line2D
 from matplotlib.transforms import blended_transform_factory
 
-from graspstab.learning.figures.common import (
+from graspstab.figures.common import (
     PCT_LABEL,
     annotate,
     colour,
@@ -26,7 +26,7 @@ from graspstab.learning.figures.common import (
     seed_note,
     stat,
 )
-from graspstab.learning.presentation import (
+from graspstab.figures.presentation import (
     METRIC_LABELS,
     RANKING_METRICS,
     THRESHOLD_METRICS,
