@@ -312,3 +312,40 @@ def test_unreadable_file_names_the_cache_entry_it_came_from(tmp_path, changed_af
     plain.write_bytes(b"x")
     assert cache_origin(plain) is None
     assert str(unreadable(plain, ValueError("bad"))).endswith("the workflow rebuilds it.")
+
+
+def test_each_cached_script_keys_the_code_it_runs():
+    """A cached job's key covers the closure of the modules its script names for run_cached; every
+    graspstab module the script imports must be inside it (else editing that module would
+    restore stale results), while code it never runs (its stage's figures) stays out."""
+    import ast
+
+    from tests.conftest import REPO
+
+    src = REPO / "src" / "graspstab"
+    checked = 0
+    for script in sorted((REPO / "workflow" / "scripts").glob("*.py")):
+        tree = ast.parse(script.read_text())
+        if not any(isinstance(n, ast.Name) and n.id == "run_cached" for n in ast.walk(tree)):
+            continue
+        # the code names given to run_cached: string constants naming a module or package
+        named = {c.value for c in ast.walk(tree) if isinstance(c, ast.Constant)
+                 and isinstance(c.value, str) and c.value.isidentifier() is False
+                 and (src / c.value).with_suffix(".py").is_file()}  # fmt: skip
+        named |= {c.value for c in ast.walk(tree) if isinstance(c, ast.Constant)
+                  and isinstance(c.value, str) and c.value.isidentifier()
+                  and (src / c.value / "__init__.py").is_file()}  # fmt: skip
+        assert named, f"{script.name}: no module named for its cache key"
+        closure = set(module_closure(sorted(named)))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("graspstab."):
+                rel = node.module.removeprefix("graspstab.").replace(".", "/")
+                if rel.startswith("common"):
+                    continue
+                assert f"{rel}.py" in closure or f"{rel}/__init__.py" in closure, (
+                    f"{script.name} imports {node.module}, outside its cache key {sorted(named)}"
+                )
+        checked += 1
+    assert checked == 8
+    replay = set(module_closure(["replay/replay_grasps"]))
+    assert "replay/figure.py" not in replay and "replay/replay_grasps.py" in replay

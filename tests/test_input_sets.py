@@ -105,7 +105,7 @@ def test_sixteen_inputs_reproduce_table_4_2() -> None:
 
 def test_training_on_an_input_set_records_its_layout(baseline, tmp_path) -> None:
     """train_model reads the layout from the dataset; the checkpoint rebuilds the same model."""
-    from graspstab.learning.train_model import train_model
+    from graspstab.evaluation.tested_run import train_and_test
 
     ds, traces = baseline
     build_input_dataset(ds, traces, "object_state", tmp_path / "obj")
@@ -113,7 +113,7 @@ def test_training_on_an_input_set_records_its_layout(baseline, tmp_path) -> None
             "pooling": "mean", "dropout": 0.0, "learning_rate": 1e-3}  # fmt: skip
     train = yaml.safe_load((CONFIG_DIR / "train" / "default.yaml").read_text())
     train.update(max_epochs=1, patience=1)
-    record = train_model(tmp_path / "obj", spec, train, 0, tmp_path / "run")
+    record = train_and_test(tmp_path / "obj", spec, train, 0, tmp_path / "run")
     assert record["inputs"] == {"fingertips": 1, "channels": 16}
     model, ckpt = load_checkpoint(tmp_path / "run" / "model.pt")
     assert model.in_features == 16 and ckpt["inputs"] == record["inputs"]

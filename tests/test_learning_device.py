@@ -14,12 +14,12 @@ import yaml
 from conftest import CONFIG_DIR, SCHEMA
 
 from graspstab.config import ConfigError, load_config
+from graspstab.evaluation.tested_run import train_and_test
 from graspstab.learning import device
 from graspstab.learning.data import load_window_data
 from graspstab.learning.device import resolve
 from graspstab.learning.models import build_model
 from graspstab.learning.train import TrainSettings, fit, predict_logits, sigmoid
-from graspstab.learning.train_model import train_model
 from tests.test_learning_train import CNN, LSTM, TRAIN, write_dataset
 
 GRU: dict[str, Any] = {**LSTM, "family": "gru"}
@@ -114,7 +114,7 @@ def test_mixed_precision_matches_fp32_within_tolerance(spec, planted, tmp_path, 
     records = {}
     for amp in (False, True):
         train = {**TRAIN, "device": "auto", "mixed_precision": amp}
-        records[amp] = train_model(planted, spec, train, 0, tmp_path / f"amp{amp}",
+        records[amp] = train_and_test(planted, spec, train, 0, tmp_path / f"amp{amp}",
                                    checkpoint=False)  # fmt: skip
     fp32, amp = records[False], records[True]
     assert fp32["placement"]["amp_dtype"] == "float32"

@@ -19,11 +19,11 @@ import yaml
 from conftest import CONFIG_DIR
 
 from graspstab.evaluation import aggregate
+from graspstab.evaluation.tested_run import train_and_test
 from graspstab.labels.dataset import normalisation
 from graspstab.learning.data import DatasetError, load_window_data
 from graspstab.learning.models import build_model
 from graspstab.learning.train import TrainSettings, evaluate, fit, sigmoid
-from graspstab.learning.train_model import train_model
 from graspstab.learning.tune_model import tune_model
 from graspstab.metrics.classification import select_threshold, threshold_grid
 
@@ -131,7 +131,7 @@ def one_class_val(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def lstm_run(planted: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """One LSTM run (seed 0) on the planted dataset, shared by the tests that read its files."""
     out = tmp_path_factory.mktemp("lstm_seed0")
-    train_model(planted, LSTM, TRAIN, 0, out)
+    train_and_test(planted, LSTM, TRAIN, 0, out)
     return out
 
 
@@ -147,7 +147,7 @@ def test_planted_signal_is_learned(planted: Path, lstm_run: Path, tmp_path: Path
     untrained = evaluate(build_model(LSTM), load_window_data(planted), "test", 1024)
     assert untrained["auprc"] < 0.8  # the pattern has to be learned, not found by chance
     lstm = _metrics(lstm_run)
-    cnn = train_model(planted, CNN, TRAIN, 0, tmp_path / "cnn")
+    cnn = train_and_test(planted, CNN, TRAIN, 0, tmp_path / "cnn")
     for record in (lstm, cnn):
         assert record["test"]["auprc"] > 0.95, record["family"]
         assert record["counts"]["test"] == {"stable": 36, "unstable": 24}
@@ -157,7 +157,7 @@ def test_planted_signal_is_learned(planted: Path, lstm_run: Path, tmp_path: Path
 
 def test_shuffled_labels_give_chance_auroc(tmp_path: Path) -> None:
     data = write_dataset(tmp_path / "ds", {"train": 30, "val": 30, "test": 150}, planted=False)
-    record = train_model(data, LSTM, TRAIN, 0, tmp_path / "run", checkpoint=False)
+    record = train_and_test(data, LSTM, TRAIN, 0, tmp_path / "run", checkpoint=False)
     n1 = record["test"]["n_unstable"]
     n0 = record["test"]["n"] - n1
     # Under independence the test AUROC is the Mann-Whitney U / (n0 n1) null distribution:
@@ -172,7 +172,7 @@ def test_same_seed_same_metrics_other_seed_other_weights(
     planted: Path, lstm_run: Path, tmp_path: Path
 ) -> None:
     timing = tmp_path / "again" / "timing.json"
-    again = train_model(planted, LSTM, TRAIN, 0, tmp_path / "again", timing_path=timing)
+    again = train_and_test(planted, LSTM, TRAIN, 0, tmp_path / "again", timing_path=timing)
     # the same bytes: the run's timings are in its timing sidecar, not in its data
     for name in ("metrics.json", "predictions.parquet", "model.pt"):
         assert (lstm_run / name).read_bytes() == (tmp_path / "again" / name).read_bytes(), name
@@ -180,7 +180,7 @@ def test_same_seed_same_metrics_other_seed_other_weights(
     seconds = json.loads(timing.read_text())
     assert len(seconds["epoch_seconds"]) == again["epochs_run"] > 0
     assert seconds["train_seconds"] >= sum(seconds["epoch_seconds"]) > 0
-    train_model(planted, LSTM, TRAIN, 1, tmp_path / "seed1")
+    train_and_test(planted, LSTM, TRAIN, 1, tmp_path / "seed1")
     w0 = torch.load(lstm_run / "model.pt", weights_only=False)["state_dict"]
     w1 = torch.load(tmp_path / "seed1" / "model.pt", weights_only=False)["state_dict"]
     assert w0.keys() == w1.keys()
@@ -213,7 +213,7 @@ def test_threshold_from_validation_only(planted: Path, lstm_run: Path, tmp_path:
         .cast(pl.Int8).alias("label")
     )  # fmt: skip
     index.write_parquet(flipped / "index.parquet")
-    other = train_model(flipped, LSTM, TRAIN, 0, tmp_path / "run", checkpoint=False)
+    other = train_and_test(flipped, LSTM, TRAIN, 0, tmp_path / "run", checkpoint=False)
     assert other["threshold"] == record["threshold"]
     assert _same(other["val"], record["val"])
     assert other["test"]["n_unstable"] == record["test"]["n"] - record["test"]["n_unstable"]
@@ -227,7 +227,7 @@ def test_one_class_validation_falls_back_to_loss(one_class_val: Path, tmp_path: 
     result = fit(build_model(LSTM), data, settings, seed=0)
     assert result.selection_metric == "loss"
     assert all(math.isnan(h["val_auprc"]) for h in result.history)
-    record = train_model(one_class_val, LSTM, TRAIN, 0, tmp_path, checkpoint=False)
+    record = train_and_test(one_class_val, LSTM, TRAIN, 0, tmp_path, checkpoint=False)
     assert record["selection_metric"] == "loss"
     assert record["threshold"]["rule"] == "undefined"
     assert record["threshold"]["threshold"] == 0.5

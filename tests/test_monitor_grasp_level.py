@@ -18,7 +18,7 @@ from PIL import Image
 
 from graspstab.common.io import load_npz, read_json, write_json, write_parquet
 from graspstab.evaluation.proxy import friction_ratio
-from graspstab.learning.train_model import train_model
+from graspstab.evaluation.tested_run import train_and_test
 from graspstab.monitor.constants import MonitorConstants, MonitorError
 from graspstab.monitor.episodes import summarise_episodes
 from graspstab.monitor.evaluate_monitor import evaluate_monitor
@@ -201,7 +201,7 @@ def trained_lstm(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     torch.set_num_threads(1)
     data = write_dataset(tmp_path_factory.mktemp("data"), {"train": 12, "val": 12, "test": 12})
     run = tmp_path_factory.mktemp("run")
-    train_model(data, LSTM, {**TRAIN, "max_epochs": 2, "patience": 2}, 0, run)
+    train_and_test(data, LSTM, {**TRAIN, "max_epochs": 2, "patience": 2}, 0, run)
     return data, run
 
 

@@ -13,10 +13,10 @@ import pytest
 import torch
 from torch import nn
 
+from graspstab.evaluation.tested_run import train_and_test
 from graspstab.learning.data import WindowData
 from graspstab.learning.models import build_model
 from graspstab.learning.train import sigmoid
-from graspstab.learning.train_model import train_model
 from graspstab.monitor.checkpoint import load_monitor, read_trained
 from graspstab.monitor.constants import MonitorConstants, MonitorError
 from graspstab.monitor.scoring import TorchScorer
@@ -244,7 +244,7 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     torch.set_num_threads(1)
     data = write_dataset(tmp_path_factory.mktemp("data"), {"train": 12, "val": 12, "test": 12})
     run = tmp_path_factory.mktemp("run")
-    train_model(data, LSTM, {**TRAIN, "max_epochs": 2, "patience": 2}, 0, run)
+    train_and_test(data, LSTM, {**TRAIN, "max_epochs": 2, "patience": 2}, 0, run)
     return data, run
 
 

@@ -29,14 +29,15 @@ from graspstab.common.io import read_json, write_json, write_parquet  # noqa: E4
 from graspstab.config import load_config  # noqa: E402
 from graspstab.evaluation import aggregate, studies  # noqa: E402
 from graspstab.figures.presentation import LEARNING_FIGURES  # noqa: E402
+from graspstab.labels.funnel import funnel, summarise_funnel  # noqa: E402
 from graspstab.metrics.classification import (  # noqa: E402
     binary_metrics,
     per_object_metrics,
     select_threshold,
     threshold_grid,
 )
+from graspstab.replay.outcomes import replay_outcomes, summarise_replays  # noqa: E402
 from graspstab.report import dag  # noqa: E402
-from graspstab.report.funnel import funnel  # noqa: E402
 from graspstab.report.headline import (  # noqa: E402
     headline_rows,
     run_scale,
@@ -112,12 +113,17 @@ def _studies_tree(root: Path) -> Any:
         {"family": "lstm", "seed": 42, "split": "test", "auprc": 0.5, "auroc": 0.6},
     ]  # fmt: skip
     write_parquet(s / "baseline" / "runs.parquet", _runs_frame(rows))
+    # the seed summary the aggregation job writes beside the runs (the headline reads it)
+    write_parquet(s / "baseline" / "summary_defined.parquet",
+                  aggregate.seed_summary(_runs_frame(rows), ["family", "split"]))  # fmt: skip
     write_json(s / "proxy.json", {"test": {"auprc": math.nan, "n": 50, "n_unstable": 0}})
     write_json(s / "splits" / "summary.json",
                {"assignments": 3, "defined": 1, "mean": 0.25, "std": math.nan})  # fmt: skip
     sweep = [{"family": "lstm", "seed": k, "split": "val", "auprc": v, "auroc": 0.5,
               "window_s": w} for k, (v, w) in enumerate([(0.6, 0.02), (0.7, 0.05)])]  # fmt: skip
     write_parquet(s / "sweep" / "runs.parquet", _runs_frame(sweep))
+    write_parquet(s / "sweep" / "summary_defined.parquet",
+                  aggregate.seed_summary(_runs_frame(sweep), ["family", "window_s", "split"]))
     return study_artefacts(root)
 
 
@@ -159,7 +165,7 @@ def test_scale_sentence_warns_in_bold_for_quick_runs() -> None:
     dataset = {"splits": {"train": {"grasps": 5, "stable": 90, "unstable": 10},
                           "val": {"grasps": 2, "stable": 30, "unstable": 0},
                           "test": {"grasps": 3, "stable": 40, "unstable": 5}}}  # fmt: skip
-    scale = run_scale(config, 3, [{"grasps": 16}, {"grasps": 16}, {"grasps": 16}], dataset)
+    scale = run_scale(config, 3, {"annealed": 48, "usable": 10}, dataset)  # the funnel's totals
     assert scale["candidate_grasps"] == 48 and scale["usable_grasps"] == 10
     assert scale["windows"] == {"train": 100, "val": 30, "test": 45}
     text = scale_sentence(scale)
@@ -173,11 +179,11 @@ def test_scale_sentence_warns_in_bold_for_quick_runs() -> None:
     assert "reduced scale" not in thesis and "reference's scale" in thesis
     # the protocol's deviations are named (here: none given, so unknown names count as such)
     full = load_config(REPO / "config", SCHEMA, check_files=False)
-    proto = run_scale(full, 3, [], dataset)["protocol"]
+    proto = run_scale(full, 3, None, dataset)["protocol"]
     assert proto["contact"] == "reference" and proto["energy"] == "hpen"
     assert proto["deviations"] == ["energy hpen (w_fc 0.01 and E_hpen)", "a 0.25 rad squeeze"]
     ref = run_scale(load_config(REPO / "config", SCHEMA, {"profile": "thesis"},
-                                check_files=False), 3, [], dataset)["protocol"]  # fmt: skip
+                                check_files=False), 3, None, dataset)["protocol"]  # fmt: skip
     assert ref["deviations"] == [] and "the reference's choices throughout" in scale_sentence(
         {**scale, "protocol": ref}
     )
@@ -220,16 +226,17 @@ def test_funnel_counts_per_object_and_total(tmp_path: Path) -> None:
         "b_obj": {"train": empty, "val": empty,
                   "test": {"grasps": 1, "stable": 9, "unstable": 1}},
     }}  # fmt: skip
-    rows = funnel(summaries, tables, dataset)
+    outcomes = replay_outcomes(pl.concat([pl.read_parquet(t) for t in tables]))
+    rows = funnel(summaries, outcomes, dataset)
     assert rows == [
         {"object": "a_obj", "annealed": 4, "replayed": 4, "diverged": 1, "held": 3,
          "usable": 2, "windows": 34, "unstable": 4},
         {"object": "b_obj", "annealed": 3, "replayed": 3, "diverged": 1, "held": 1,
          "usable": 1, "windows": 10, "unstable": 1},
-        {"object": "all objects", "annealed": 7, "replayed": 7, "diverged": 2, "held": 4,
+        {"object": None, "annealed": 7, "replayed": 7, "diverged": 2, "held": 4,
          "usable": 3, "windows": 44, "unstable": 5},
     ]  # fmt: skip
-    no_dataset = funnel(summaries, tables, None)
+    no_dataset = funnel(summaries, outcomes, None)
     assert no_dataset[-1]["usable"] is None and no_dataset[-1]["replayed"] == 7
 
 
@@ -495,10 +502,17 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
             write_json(paths[-1], _record(f, seed, 0.0))
     studies.aggregate_baseline(paths, s / "baseline")
     sweep = [_record("lstm", seed, 0.3, window_s=w) for seed in (42, 43) for w in (0.01, 0.02)]
-    write_parquet(
-        s / "sweep" / "runs.parquet",
-        aggregate.run_rows(sweep, [{"window_s": x["window_s"]} for x in sweep]),
-    )
+    sweep_runs = aggregate.run_rows(sweep, [{"window_s": x["window_s"]} for x in sweep])
+    write_parquet(s / "sweep" / "runs.parquet", sweep_runs)
+    write_parquet(s / "sweep" / "summary_defined.parquet",
+                  aggregate.seed_summary(sweep_runs, ["family", "window_s", "split"]))
+    write_json(s / "sweep" / "threshold_rules.json", aggregate.threshold_rules(sweep_runs))
+    # the replay outcome table and the grasp funnel, as their jobs write them
+    outcomes = r / "replay" / "outcomes.parquet"
+    summarise_replays(replays, outcomes, "gravity")
+    funnel_table = r / "report" / "funnel.parquet"
+    summarise_funnel(summaries, outcomes, r / "datasets" / "baseline" / "summary.json",
+                             funnel_table)  # fmt: skip
     write_json(s / "splits" / "summary.json", {
         "assignments": 2, "defined": 2, "mean": 0.7, "std": 0.1, "median": 0.7, "min": 0.6,
         "fixed_split": 0.8, "hardest": [], "per_assignment": [],
@@ -515,8 +529,9 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         "config": config, "figures": figs, "object_meta": metas,
         "hand_json": r / "hand" / "hand.json", "benchmark_files": bench["preprocess_object"],
         "grasp_summaries": summaries, "anneal_benchmarks": bench["anneal_grasps"],
-        "replay_summaries": replays, "dataset_summary": r / "datasets" / "baseline" /
-        "summary.json", "sweep_summaries": sorted(r.glob("datasets/sweep/*/summary.json")),
+        "replay_outcomes": outcomes, "funnel": funnel_table,
+        "dataset_summary": r / "datasets" / "baseline" / "summary.json",
+        "sweep_summaries": sorted(r.glob("datasets/sweep/*/summary.json")),
         "learning": study_artefacts(r), "learning_figures": learning, "rule_benchmarks": bench,
         "rulegraph": graphs["rulegraph"], "jobgraph": graphs["dag"],
         "speeds_summary": r / "datasets" / "speeds.json", "monitor": monitor,

@@ -206,7 +206,7 @@ def test_augmentation_passes_training_windows_through_drawn_sensors(dataset) -> 
 
 def test_train_model_with_augmentation_records_it(dataset, tmp_path: Path) -> None:
     """An augmented training runs end to end and stores the sensing settings with its params."""
-    from graspstab.learning.train_model import train_model
+    from graspstab.evaluation.tested_run import train_and_test
 
     ds, paths, keys = dataset
     spec = {"family": "cnn", "base_channels": 4, "kernel_sizes": [3], "dropout": 0.0,
@@ -214,7 +214,7 @@ def test_train_model_with_augmentation_records_it(dataset, tmp_path: Path) -> No
     train = yaml.safe_load((CONFIG_DIR / "train" / "default.yaml").read_text())
     train.update(max_epochs=1, patience=1)
     sensing = {**SENSING, "curves": {"noise": [0.5]}, "presets": {}}
-    record = train_model(ds, spec, train, 3, tmp_path / "run", augment={
+    record = train_and_test(ds, spec, train, 3, tmp_path / "run", augment={
         "sensing": sensing, "trace_paths": paths, "trace_keys": keys, "dt": DT})  # fmt: skip
     assert record["params"]["augment"]["sensing"]["curves"] == {"noise": [0.5]}
     assert (tmp_path / "run" / "model.pt").exists()

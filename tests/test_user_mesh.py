@@ -17,8 +17,9 @@ import yaml
 from objects_fixtures import own_object_set
 
 from graspstab.assets import AssetError
+from graspstab.assets.local_ycb import check_local_ycb_dir
 from graspstab.assets.mesh_file import MIN_THICKNESS_M, MIN_VOLUME_FRACTION
-from graspstab.assets.ycb import check_local_ycb_dir, fetch_ycb_object, user_mesh_sha256
+from graspstab.assets.ycb import fetch_ycb_object, user_mesh_sha256
 from tests.toy_workflow import REPO, listed_jobs, snakemake_command, snakemake_run
 
 OWN = "900_own_brick"  # an id of the YCB pattern that is no YCB object: only a mesh: entry has it

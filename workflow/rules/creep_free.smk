@@ -23,6 +23,19 @@ use rule replay_grasps as replay_grasps_creep_free with:
         "results/benchmarks/replay_grasps_creep_free/{object}_shard_{shard}.tsv"
 
 
+use rule summarise_replays as summarise_replays_creep_free with:
+    input:
+        tables=replay_outputs("replays", CF),
+    output:
+        f"{CF}/replay/outcomes.parquet",
+    params:
+        protocol=creep_free_replay()["protocol"],
+    log:
+        "results/logs/summarise_replays_creep_free/outcomes.log",
+    benchmark:
+        "results/benchmarks/summarise_replays_creep_free/outcomes.tsv"
+
+
 use rule label_windows as label_windows_creep_free with:
     input:
         tables=replay_outputs("replays", CF),
@@ -179,7 +192,7 @@ CREEP_FREE_ARTEFACTS = {
     "dataset": rules.label_windows_creep_free.output.summary,
     "speeds": rules.plot_unstable_speeds_creep_free.output.summary,
     "speeds_figure": rules.plot_unstable_speeds_creep_free.output.figure,
-    "replays": replay_outputs("replays", CF),
+    "replay_outcomes": rules.summarise_replays_creep_free.output[0],
     **{f"study_baseline_{k}": v for k, v in rules.aggregate_baseline_creep_free.output.items()},
     **{f"study_sweep_{k}": v for k, v in rules.aggregate_sweep_creep_free.output.items()},
     "study_proxy": rules.evaluate_proxy_creep_free.output[0],

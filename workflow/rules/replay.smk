@@ -24,3 +24,25 @@ rule replay_grasps:
     script:
         "../scripts/replay_grasps.py"
 
+
+
+# How the replays ended, per object and over all objects (held, contact lost, too deep, diverged,
+# deepest contact, simulated time): the table the report's replay section, grasp funnel and
+# side-by-side section read, so the report counts nothing itself.
+rule summarise_replays:
+    input:
+        tables=replay_outputs("replays"),
+    output:
+        "results/replay/outcomes.parquet",
+    params:
+        protocol=config["replay"]["protocol"],
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/summarise_replays/outcomes.log",
+    benchmark:
+        "results/benchmarks/summarise_replays/outcomes.tsv"
+    script:
+        "../scripts/summarise_replays.py"

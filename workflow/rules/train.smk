@@ -113,6 +113,10 @@ rule aggregate_baseline:
         objects="results/studies/baseline/objects.parquet",
         errors="results/studies/baseline/errors.parquet",
         overview="results/studies/baseline/summary.json",
+        # mean +- std over seeds with 0/0 metrics undefined: what the report shows
+        summary_defined="results/studies/baseline/summary_defined.parquet",
+        # the threshold rule each run chose on validation, counted (the report's threshold table)
+        threshold_rules="results/studies/baseline/threshold_rules.json",
     params:
         out_dir=lambda wc, output: str(Path(output[0]).parent),
     threads: 1
@@ -163,6 +167,8 @@ rule aggregate_sweep:
         summary="results/studies/sweep/summary.parquet",
         points="results/studies/sweep/operating_points.parquet",
         overview="results/studies/sweep/summary.json",
+        summary_defined="results/studies/sweep/summary_defined.parquet",
+        threshold_rules="results/studies/sweep/threshold_rules.json",
     params:
         out_dir=lambda wc, output: str(Path(output[0]).parent),
     threads: 1
@@ -183,6 +189,7 @@ rule aggregate_splits:
     output:
         runs="results/studies/splits/runs.parquet",
         overview="results/studies/splits/summary.json",
+        threshold_rules="results/studies/splits/threshold_rules.json",
     params:
         out_dir=lambda wc, output: str(Path(output[0]).parent),
         assignments=lambda wc: assignments(),

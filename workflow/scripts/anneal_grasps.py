@@ -26,4 +26,4 @@ def compute() -> None:
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 with job(sm):
-    run_cached(sm, ("synthesis",), compute)
+    run_cached(sm, ("synthesis/anneal_grasps",), compute)

@@ -55,4 +55,4 @@ def compute() -> None:
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 with job(sm):
-    run_cached(sm, ("replay", "labels", "learning", "monitor", "closedloop"), compute)
+    run_cached(sm, ("closedloop/closed_loop", "closedloop/sources", "closedloop/sweep"), compute)

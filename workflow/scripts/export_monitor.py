@@ -22,4 +22,4 @@ def compute() -> None:
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 with job(sm):
-    run_cached(sm, ("monitor",), compute)
+    run_cached(sm, ("monitor/export_models",), compute)

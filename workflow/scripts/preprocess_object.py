@@ -23,4 +23,4 @@ def compute() -> None:
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 with job(sm):
-    run_cached(sm, ("objects",), compute)
+    run_cached(sm, ("objects/preprocess_object",), compute)

@@ -29,4 +29,4 @@ with job(sm):
     need = shard_trace_bytes(sm.input.grasps, dict(sm.params.replay))
     require_job_space(sm, {sm.output.traces: need}, "this shard's replay traces")
     # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
-    run_cached(sm, ("replay",), compute)
+    run_cached(sm, ("replay/replay_grasps",), compute)

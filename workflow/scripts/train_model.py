@@ -1,11 +1,11 @@
-"""Snakemake wrapper: train and evaluate one model x dataset x seed (graspstab.learning)."""
+"""Snakemake wrapper: train one model x dataset x seed, then test it (evaluation.tested_run)."""
 
 from pathlib import Path
 
 from graspstab.common.cache import run_cached
 from graspstab.common.jobs import job
+from graspstab.evaluation.tested_run import train_and_test
 from graspstab.learning.specs import study_spec
-from graspstab.learning.train_model import train_model
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 
@@ -13,7 +13,7 @@ sm = snakemake  # noqa: F821  (injected by Snakemake)
 def compute() -> None:
     p = dict(sm.params)
     spec = study_spec(p["spec"], sm.input.get("best"), p.get("pooling"))
-    train_model(
+    train_and_test(
         Path(sm.input.index).parent,
         spec,
         dict(p["train"]),
@@ -34,6 +34,7 @@ def compute() -> None:
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 with job(sm):
-    run_cached(
-        sm, ("learning", "sensing") if "augment" in sm.params.keys() else ("learning",), compute
-    )
+    # the key covers the code this job runs: the tested run and what it imports (training)
+    code = ("evaluation/tested_run", "learning/specs",
+            *(("sensing",) if "augment" in sm.params.keys() else ()))  # fmt: skip
+    run_cached(sm, code, compute)

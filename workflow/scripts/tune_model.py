@@ -25,4 +25,4 @@ def compute() -> None:
 
 # Content-addressed: restored from the cache when the same job ran before (docs/design.md).
 with job(sm):
-    run_cached(sm, ("learning",), compute)
+    run_cached(sm, ("learning/tune_model",), compute)

@@ -9,14 +9,11 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import polars as pl
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
-
-from graspstab.common.io import load_npz, read_parquet, save_figure  # noqa: E402
+from graspstab.common.io import load_npz, read_parquet
+from graspstab.common.plotting import no_data, plt, save
 
 PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
 BOUNDS = {"always": ("k", "s"), "oracle": ("tab:green", "*")}  # colour and marker
@@ -28,6 +25,13 @@ def _errors(frame: pl.DataFrame, key: str) -> np.ndarray:
     return np.nan_to_num(np.vstack([v - lo, hi - v]) * 100, nan=0.0)
 
 
+def _nothing_to_draw(axes: Sequence[Any], text: str) -> None:
+    """Every panel hidden, ``text`` in the first (a run without a sweep or a closed loop)."""
+    for ax in axes[1:]:
+        ax.set_axis_off()
+    no_data(axes[0], text, color=None, fontsize=None, va="baseline", wrap=False, axis_off=True)
+
+
 def plot_tradeoff(tradeoff: pl.DataFrame, policies: pl.DataFrame, protocol: str, out: str | Path,
                   dpi: int = 110) -> None:  # fmt: skip
     """Drops prevented (share of the no-reflex drops) against the false-alarm rate and against the
@@ -36,11 +40,8 @@ def plot_tradeoff(tradeoff: pl.DataFrame, policies: pl.DataFrame, protocol: str,
     fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.4), sharey=True)
     name = PROTOCOLS.get(protocol, protocol)
     if tradeoff.is_empty():
-        for ax in axes:
-            ax.axis("off")
-        axes[0].text(0.5, 0.5, "no sweep in this run (closed_loop.sweep)", ha="center")
-        save_figure(out, fig, dpi=dpi)
-        plt.close(fig)
+        _nothing_to_draw(axes, "no sweep in this run (closed_loop.sweep)")
+        save(fig, out, dpi)
         return
     panels = (("false_alarm_rate", 100.0, "false alarms [% of grasps that hold]"),
               ("added_normal_mean_n", 1.0, "added normal force, mean [N]"))  # fmt: skip
@@ -70,8 +71,7 @@ def plot_tradeoff(tradeoff: pl.DataFrame, policies: pl.DataFrame, protocol: str,
     axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(f"The reflex's trade-off, {name}: one setting changed at a time", fontsize=10)
     fig.tight_layout()
-    save_figure(out, fig, dpi=dpi)
-    plt.close(fig)
+    save(fig, out, dpi)
 
 
 def best_timeline(paths: Sequence[str | Path]) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
@@ -94,11 +94,8 @@ def plot_timeline(arrays: dict[str, np.ndarray], meta: dict[str, Any], protocol:
     fig, axes = plt.subplots(3, 1, figsize=(8.0, 7.0), sharex=True)
     name = PROTOCOLS.get(protocol, protocol)
     if not meta:
-        for ax in axes:
-            ax.axis("off")
-        axes[0].text(0.5, 0.5, "no closed-loop run to draw", ha="center")
-        save_figure(out, fig, dpi=dpi)
-        plt.close(fig)
+        _nothing_to_draw(axes, "no closed-loop run to draw")
+        save(fig, out, dpi)
         return
     policy = meta["policy"]
     for side, colour, label in (("none", "0.4", "no reflex"), ("reflex", "tab:blue", policy)):
@@ -130,8 +127,7 @@ def plot_timeline(arrays: dict[str, np.ndarray], meta: dict[str, Any], protocol:
     axes[0].set_title(f"{meta['object']} grasp {meta['grasp_id']}, {name}: {policy} {what} "
                       f"(no reflex: {base})", fontsize=9)  # fmt: skip
     fig.tight_layout()
-    save_figure(out, fig, dpi=dpi)
-    plt.close(fig)
+    save(fig, out, dpi)
 
 
 def plot_closed_loop(summary_dir: str | Path, timelines: Sequence[str | Path], protocol: str,

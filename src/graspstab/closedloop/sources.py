@@ -17,8 +17,8 @@ import polars as pl
 from graspstab.closedloop.policies import Policy
 from graspstab.common.io import read_parquet
 from graspstab.monitor.checkpoint import read_trained
-from graspstab.monitor.evaluate_monitor import proxy_scorer
 from graspstab.monitor.export import load_onnx
+from graspstab.monitor.proxy import proxy_scorer
 from graspstab.monitor.scoring import TorchScorer
 
 FIXED = {"none": "none", "always": "always", "oracle": "oracle"}

@@ -12,7 +12,7 @@ import yaml
 
 from graspstab.assets.catalogue import is_known_ycb_id
 from graspstab.assets.errors import AssetError
-from graspstab.assets.ycb import check_local_ycb_dir
+from graspstab.assets.local_ycb import check_local_ycb_dir
 from graspstab.config.credentials import check_storage
 from graspstab.config.errors import ConfigError
 from graspstab.config.relations import check_finite, check_relations

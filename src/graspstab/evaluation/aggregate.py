@@ -8,6 +8,7 @@ choice and the split-robustness summary are computed from those.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
@@ -75,6 +76,49 @@ def mean_std(
         .agg(pl.col("seed").n_unique().alias("seeds"), *aggs)
         .sort(list(by))
     )
+
+
+def undefined_as_nan(frame: pl.DataFrame) -> pl.DataFrame:
+    """Precision, recall and F1 as NaN where scikit-learn's zero_division=0 stored 0 for 0/0:
+    recall with no unstable window, precision with none predicted unstable, F1 with neither.
+    ``frame`` needs tp, fp, fn and the three metrics (runs or objects table)."""
+    pos = pl.col("tp") + pl.col("fn")
+    pred = pl.col("tp") + pl.col("fp")
+    nan = pl.lit(float("nan"))
+    return frame.with_columns(
+        pl.when(pos == 0).then(nan).otherwise(pl.col("recall")).alias("recall"),
+        pl.when(pred == 0).then(nan).otherwise(pl.col("precision")).alias("precision"),
+        pl.when(pos + pred == 0).then(nan).otherwise(pl.col("f1")).alias("f1"),
+    )
+
+
+def seed_summary(runs: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
+    """What the report shows of a study's runs: :func:`mean_std` with 0/0 metrics undefined
+    (:func:`undefined_as_nan`), plus per group ``no_unstable`` / ``no_stable``: whether every run's
+    split held no unstable (no stable) window, the reason a ranking metric is undefined."""
+    summary = mean_std(undefined_as_nan(runs), by)
+    classes = runs.group_by(list(by)).agg(
+        (pl.col("n_unstable") == 0).all().alias("no_unstable"),
+        (pl.col("n_unstable") == pl.col("n")).all().alias("no_stable"),
+    )
+    return summary.join(classes, on=list(by), how="left").sort(list(by))
+
+
+def threshold_rules(runs: pl.DataFrame) -> dict[str, Any]:
+    """How a study's runs chose their decision threshold on validation (3.5.3): the validation
+    runs, each rule with its count (``rules``: [rule, runs] in order of first use), and the runs
+    with an undefined validation AUROC or AUPRC, of which how many had no unstable and no stable
+    validation window."""
+    val = runs.filter(pl.col("split") == "val")
+    counts = Counter(val["threshold_rule"].to_list())
+    nan = val.filter(pl.col("auprc").is_nan() | pl.col("auroc").is_nan())
+    return {
+        "runs": val.height,
+        "rules": [[rule, n] for rule, n in counts.items()],
+        "undefined_validation_metrics": nan.height,
+        "no_unstable": int((nan["n_unstable"] == 0).sum()),
+        "no_stable": int((nan["n_unstable"] == nan["n"]).sum()),
+    }
 
 
 def error_table(frame: pl.DataFrame) -> pl.DataFrame:

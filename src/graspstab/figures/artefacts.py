@@ -38,6 +38,14 @@ class StudyArtefacts:
     sweep_summary: Path | None = None  # studies/sweep/summary.parquet
     sweep_points: Path | None = None  # studies/sweep/operating_points.parquet
     sweep_overview: Path | None = None  # studies/sweep/summary.json
+    # mean ± std over seeds with 0/0 metrics undefined (evaluation.aggregate.seed_summary): what
+    # the report shows of the baseline and sweep studies
+    baseline_summary_defined: Path | None = None  # studies/baseline/summary_defined.parquet
+    sweep_summary_defined: Path | None = None  # studies/sweep/summary_defined.parquet
+    # each study's threshold rules per run, counted (evaluation.aggregate.threshold_rules)
+    baseline_threshold_rules: Path | None = None  # studies/baseline/threshold_rules.json
+    sweep_threshold_rules: Path | None = None  # studies/sweep/threshold_rules.json
+    splits_threshold_rules: Path | None = None  # studies/splits/threshold_rules.json
     splits_runs: Path | None = None  # studies/splits/runs.parquet
     splits_overview: Path | None = None  # studies/splits/summary.json
     latency: Path | None = None  # studies/latency.parquet

@@ -1,5 +1,7 @@
-"""What every chapter-4 figure shares: the Agg backend, family colours, atomic PNG output, the
-"no data" and placeholder panels, and bars that mark an undefined (NaN) value instead of drawing it.
+"""What the chapter-4 figures share on top of :mod:`graspstab.common.plotting` (the Agg backend,
+the "no data" panel, the atomic PNG save, re-exported here): family colours, figures cropped to
+their content, placeholder panels, and bars that mark an undefined (NaN) value instead of drawing
+it.
 """
 
 from __future__ import annotations
@@ -9,16 +11,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import polars as pl
+from matplotlib.patches import Patch
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-
-from graspstab.common.io import save_figure  # noqa: E402
-from graspstab.figures.presentation import UNDEFINED, as_float, family_label, finite  # noqa: E402
+from graspstab.common import plotting
+from graspstab.common.plotting import no_data, plt  # the figure modules import them from here
+from graspstab.figures.presentation import UNDEFINED, as_float, family_label, finite
 
 FAMILY_COLOURS = {"cnn": "#1f77b4", "gru": "#ff7f0e", "lstm": "#2ca02c"}
 PCT_LABEL = "score [%], mean ± std over seeds"
@@ -39,35 +38,15 @@ def stat(row: Mapping[str, Any] | None, metric: str) -> Stat:
 
 
 def save(fig: plt.Figure, path: Path, dpi: int) -> Path:
-    """Write ``fig`` as a PNG atomically (temporary file, then rename) and close it."""
-    path = Path(path)
-    try:
-        save_figure(path, fig, dpi=dpi, bbox_inches="tight")
-    finally:
-        plt.close(fig)
-    return path
-
-
-def no_data(ax: plt.Axes, text: str = "no data") -> None:
-    """Say in the panel that there is nothing to draw."""
-    ax.text(
-        0.5,
-        0.5,
-        text,
-        ha="center",
-        va="center",
-        transform=ax.transAxes,
-        color="0.3",
-        fontsize=10,
-        wrap=True,
-    )
+    """Write ``fig`` as a PNG cropped to its content, atomically, and close it."""
+    plotting.save(fig, path, dpi, tight=True)
+    return Path(path)
 
 
 def placeholder(path: Path, title: str, message: str, dpi: int) -> Path:
     """A figure that only states why it could not be drawn (a missing study artefact)."""
     fig, ax = plt.subplots(figsize=(7, 2.2))
-    ax.set_axis_off()
-    no_data(ax, message)
+    no_data(ax, message, axis_off=True)
     fig.suptitle(title)
     return save(fig, path, dpi)
 

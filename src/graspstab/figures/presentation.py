@@ -15,7 +15,8 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.evaluation.aggregate import mean_std
+# undefined_as_nan (precision, recall and F1 as NaN for 0/0) is the studies'; re-exported here
+from graspstab.evaluation.aggregate import mean_std, undefined_as_nan  # noqa: F401
 
 #: Every learning figure of rule ``plot_learning`` (name -> ``<name>.png``), in thesis order.
 LEARNING_FIGURES = (
@@ -98,20 +99,8 @@ def rows_by(frame: pl.DataFrame, keys: Sequence[str]) -> dict[tuple, dict[str, A
     return {tuple(r[k] for k in keys): r for r in frame.iter_rows(named=True)}
 
 
-def undefined_as_nan(frame: pl.DataFrame) -> pl.DataFrame:
-    """Precision, recall and F1 as NaN where scikit-learn's zero_division=0 stored 0 for 0/0:
-    recall with no unstable window, precision with none predicted unstable, F1 with neither.
-    ``frame`` needs tp, fp, fn and the three metrics (runs or objects table)."""
-    pos = pl.col("tp") + pl.col("fn")
-    pred = pl.col("tp") + pl.col("fp")
-    nan = pl.lit(float("nan"))
-    return frame.with_columns(
-        pl.when(pos == 0).then(nan).otherwise(pl.col("recall")).alias("recall"),
-        pl.when(pred == 0).then(nan).otherwise(pl.col("precision")).alias("precision"),
-        pl.when(pos + pred == 0).then(nan).otherwise(pl.col("f1")).alias("f1"),
-    )
-
-
 def defined_summary(runs: pl.DataFrame, by: Sequence[str]) -> pl.DataFrame:
-    """Mean ± std over seeds (as the studies' summary.parquet) with 0/0 metrics undefined."""
+    """Mean ± std over seeds (as the studies' summary.parquet) with 0/0 metrics undefined (the
+    figures' view; the report reads the same numbers from the studies' summary_defined.parquet,
+    written by :func:`graspstab.evaluation.aggregate.seed_summary`)."""
     return mean_std(undefined_as_nan(runs), by)

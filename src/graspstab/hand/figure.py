@@ -4,18 +4,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
+from graspstab.common.io import read_json
+from graspstab.common.plotting import plt, save
+from graspstab.hand import names
+from graspstab.hand.kinematics import HandKinematics
+from graspstab.hand.meshes import body_collision_mesh, collision_geoms
 
-from graspstab.common.io import atomic_path, read_json  # noqa: E402
-from graspstab.hand import names  # noqa: E402
-from graspstab.hand.kinematics import HandKinematics  # noqa: E402
-from graspstab.hand.meshes import body_collision_mesh, collision_geoms  # noqa: E402
-
+DPI = 150
 FINGER_COLOURS = {
     "thumb": "tab:orange",
     "index": "tab:blue",
@@ -91,12 +89,6 @@ def _mesh_collection(tris: np.ndarray, alpha: float) -> Poly3DCollection:
     return Poly3DCollection(tris, facecolors=colours, edgecolors="none", zorder=1)
 
 
-def _save(fig: plt.Figure, out_png: str | Path) -> None:
-    with atomic_path(out_png) as tmp:
-        fig.savefig(tmp, format="png", dpi=150, bbox_inches="tight")
-    plt.close(fig)
-
-
 def plot_candidates(hand_dir: str | Path, out_png: str | Path) -> None:
     """The hand's collision meshes with the 120 contact candidates as red dots (fig. 3.3)."""
     kin = HandKinematics(hand_dir)
@@ -109,7 +101,7 @@ def plot_candidates(hand_dir: str | Path, out_png: str | Path) -> None:
         ax.add_collection3d(_mesh_collection(tris, alpha=1.0))
         ax.scatter(*pts.T, c="red", s=9, depthshade=False, zorder=5, edgecolors="darkred")
         _setup_axes(ax, tris, elev, azim, f"{title}: {len(pts)} contact candidates")
-    _save(fig, out_png)
+    save(fig, out_png, DPI, tight=True)
 
 
 def _capsule_surface(p0: np.ndarray, p1: np.ndarray, r: float, n: int = 14) -> np.ndarray:
@@ -191,4 +183,4 @@ def plot_capsules(hand_dir: str | Path, out_png: str | Path) -> None:
             )
         )
         _setup_axes(ax, tris, elev, azim, f"{title}: {len(data['capsules'])} capsules + palm box")
-    _save(fig, out_png)
+    save(fig, out_png, DPI, tight=True)

@@ -7,19 +7,18 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import polars as pl
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
+from graspstab.common.io import read_parquet
+from graspstab.common.plotting import no_data, plt, save
+from graspstab.hand.names import FINGERS
+from graspstab.labels.interval import usable_interval
+from graspstab.labels.windows import step_counts, timestep_labels
+from graspstab.replay.figure import example_traces, plot_replay_trace
+from graspstab.replay.traces import read_traces
 
-from graspstab.common.io import read_parquet, save_figure  # noqa: E402
-from graspstab.hand.names import FINGERS  # noqa: E402
-from graspstab.labels.interval import usable_interval  # noqa: E402
-from graspstab.labels.windows import step_counts, timestep_labels  # noqa: E402
-from graspstab.replay.figure import example_traces, plot_replay_trace  # noqa: E402
-from graspstab.replay.traces import read_traces  # noqa: E402
+DPI = 110
 
 
 def shade_periods(axes: list[Any], t: np.ndarray, u: np.ndarray, start: int, end: int) -> None:
@@ -86,10 +85,9 @@ def plot_window(
     index = read_parquet(index_path)
     if index.height == 0:
         fig, ax = plt.subplots(figsize=(6, 1.5))
-        ax.text(0.5, 0.5, "no labelled window in this run", ha="center", va="center")
-        ax.set_axis_off()
-        save_figure(out_path, fig, dpi=110)
-        plt.close(fig)
+        no_data(ax, "no labelled window in this run", color=None, fontsize=None, wrap=False,
+                axis_off=True)  # fmt: skip
+        save(fig, out_path, DPI)
         return
     sample = pick_window(index)
     w = sample["end"] - sample["start"]
@@ -126,5 +124,4 @@ def plot_window(
         fontsize=9,
     )
     fig.tight_layout()
-    save_figure(out_path, fig, dpi=110)
-    plt.close(fig)
+    save(fig, out_path, DPI)

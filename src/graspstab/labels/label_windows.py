@@ -21,11 +21,11 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import read_parquet, save_npy, write_json, write_parquet
+from graspstab.common.io import save_npy, write_json, write_parquet
 from graspstab.labels.dataset import CHANNELS, normalisation
 from graspstab.labels.interval import usable_interval
+from graspstab.labels.replays import replay_grasps
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
-from graspstab.replay.traces import TraceFile
 
 
 def grasp_rng(seed: int, object_id: str, grasp_id: int) -> np.random.Generator:
@@ -73,24 +73,18 @@ def label_windows(
     w = step_counts(window_s, labels["offset_s"], labels["horizon_s"], dt)[0]
     rows: list[dict[str, Any]] = []
     chunks: list[np.ndarray] = []
-    for table_path, traces_path in replays:
-        table = read_parquet(table_path).filter(~pl.col("diverged"))
-        with TraceFile(traces_path) as npz:
-            for g in table.iter_rows(named=True):
-                obj, gid = g["object"], int(g["grasp_id"])
-                if obj not in splits:
-                    raise KeyError(f"{table_path}: object {obj!r} has no split in the object set")
-                tr = npz.grasp(gid, ("velocity", "min_distance", *CHANNELS))
-                starts, r, y, _ = grasp_windows(tr, obj, gid, labels, window_s, dt, seed)
-                if not len(starts):
-                    continue
-                feats = np.stack([tr[c] for c in CHANNELS], axis=-1)  # (T, 5, 2)
-                idx = starts[:, None] + np.arange(w)[None]
-                chunks.append(feats[idx].astype(np.float32))
-                for s, rs, ys in zip(starts, r, y, strict=True):
-                    rows.append({"object": obj, "grasp_id": gid, "shard": int(g["shard"]),
-                                 "start": int(s), "end": int(s) + w, "r": float(rs),
-                                 "label": int(ys), "split": splits[obj]})  # fmt: skip
+    for g in replay_grasps(replays, splits, ("velocity", "min_distance", *CHANNELS)):
+        tr = g.traces
+        starts, r, y, _ = grasp_windows(tr, g.object, g.grasp_id, labels, window_s, dt, seed)
+        if not len(starts):
+            continue
+        feats = np.stack([tr[c] for c in CHANNELS], axis=-1)  # (T, 5, 2)
+        idx = starts[:, None] + np.arange(w)[None]
+        chunks.append(feats[idx].astype(np.float32))
+        for s, rs, ys in zip(starts, r, y, strict=True):
+            rows.append({"object": g.object, "grasp_id": g.grasp_id, "shard": g.shard,
+                         "start": int(s), "end": int(s) + w, "r": float(rs),
+                         "label": int(ys), "split": g.split})  # fmt: skip
     index = pl.DataFrame(
         rows,
         schema={"object": pl.String, "grasp_id": pl.Int64, "shard": pl.Int32, "start": pl.Int64,

@@ -7,14 +7,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from graspstab.common.io import read_parquet, save_figure, write_json  # noqa: E402
-from graspstab.labels.speeds import summarise_speeds  # noqa: E402
+from graspstab.common.io import read_parquet, write_json
+from graspstab.common.plotting import plt, save
+from graspstab.labels.speeds import summarise_speeds
 
 FLOOR = 1e-6  # [m/s] speeds below 1 um/s are drawn in the first bin (log axis)
 
@@ -43,8 +40,7 @@ def plot_speeds(summary: dict[str, Any], speeds: dict[str, np.ndarray], out: str
     ax.set_title(f"What the labels mean under the '{summary['contact_model']}' contact model")
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    save_figure(out, fig, dpi=110)
-    plt.close(fig)
+    save(fig, out, 110)
 
 
 def plot_unstable_speeds(

@@ -1,10 +1,11 @@
-"""Train one model on one dataset for one seed, choose its threshold on validation, test once.
+"""Train one model on one dataset for one seed and choose its threshold on validation.
 
-The full per-seed procedure of 3.5.4: initialise, train with early stopping, keep the best
-validation epoch, choose the decision threshold on validation only (3.5.3), then evaluate
-validation and test, pooled and per object. Writes ``metrics.json``, ``predictions.parquet`` (the
-validation and test scores, for calibration and threshold-transfer figures) and, when asked, a
-checkpoint carrying its model arguments, normalisation and config.
+The training half of the per-seed procedure of 3.5.4: initialise, train with early stopping, keep
+the best validation epoch, choose the decision threshold on validation only (3.5.3), and score
+the validation and test windows. Writes ``predictions.parquet`` (the validation and test scores,
+which the evaluation turns into metrics and the figures into calibration and threshold-transfer
+plots) and, when asked, a checkpoint carrying its model arguments, normalisation and config; the
+test half (metrics on those scores, ``metrics.json``) is ``graspstab.evaluation.tested_run``.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +21,7 @@ import numpy as np
 import polars as pl
 import torch
 
-from graspstab.common.io import atomic_path, write_json, write_parquet
+from graspstab.common.io import atomic_path, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import code_version, compute_platform, stable_hash, write_timing
 from graspstab.learning.augmentation import attach
@@ -28,11 +30,8 @@ from graspstab.learning.features import window_transform
 from graspstab.learning.models import build_model, count_parameters
 from graspstab.learning.train import TrainSettings, fit, predict_logits, sigmoid
 from graspstab.metrics.classification import (
-    METRIC_KEYS,
     UNDEFINED_THRESHOLD,
     ThresholdChoice,
-    binary_metrics,
-    per_object_metrics,
     select_threshold,
     threshold_grid,
 )
@@ -51,10 +50,11 @@ def threshold_settings(train: Mapping[str, Any], model: Mapping[str, Any]) -> di
     }
 
 
-def evaluate_splits(
+def predict_splits(
     model: torch.nn.Module, data: WindowData, threshold: Mapping[str, Any], batch_size: int
 ) -> tuple[dict[str, Any], pl.DataFrame]:
-    """Choose the threshold on validation, then score validation and test with it."""
+    """Choose the threshold on validation (3.5.3), and score the validation and test windows:
+    the threshold choice and one row per window (an empty split has none)."""
     scores: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for split in ("val", "test"):
         rows = data.rows(split)
@@ -71,32 +71,32 @@ def evaluate_splits(
     else:
         log.warning("no validation window: the threshold is undefined (0.5 used)")
         choice = ThresholdChoice(UNDEFINED_THRESHOLD, "undefined", math.nan, math.nan, math.nan)
-    out: dict[str, Any] = {"threshold": {**vars(choice), "min_recall": threshold["min_recall"]}}
     frames = []
     for split, (rows, logits, labels) in scores.items():
-        probs, objects = sigmoid(logits), data.objects(rows)
         if len(rows) == 0:
             log.warning("no %s window in this split assignment: its metrics are undefined", split)
-            out[split] = {k: math.nan for k in METRIC_KEYS} | {"n": 0, "n_unstable": 0}
-            out[f"{split}_objects"] = {}
             continue
-        out[split] = binary_metrics(probs, labels, choice.threshold, logits=logits)
-        out[f"{split}_objects"] = per_object_metrics(
-            probs, labels, objects, choice.threshold, logits=logits
-        )
         frames.append(
             pl.DataFrame(
                 {
                     "sample_id": data.index["sample_id"].to_numpy()[rows],
-                    "object": objects,
+                    "object": data.objects(rows),
                     "split": [split] * len(rows),
                     "label": labels.astype(np.int8),
                     "logit": logits,
-                    "prob": probs,
+                    "prob": sigmoid(logits),
                 }
             )
         )
-    return out, pl.concat(frames)
+    return {**vars(choice), "min_recall": threshold["min_recall"]}, pl.concat(frames)
+
+
+@dataclass(frozen=True)
+class TrainedRun:
+    """A trained run: its record (without test metrics) and its validation and test scores."""
+
+    record: dict[str, Any]
+    predictions: pl.DataFrame
 
 
 def train_model(
@@ -114,9 +114,11 @@ def train_model(
     features: Mapping[str, Any] | None = None,
     log_file: str | Path | None = None,
     timing_path: str | Path | None = None,
-) -> dict[str, Any]:
-    """Run the per-seed procedure and write its artefacts into ``out_dir``; return the metrics
-    (``extra`` keys, e.g. the split assignment's number, are stored with them). The run's
+) -> TrainedRun:
+    """Train, choose the threshold and score the held-out windows; write the predictions (and
+    checkpoint) into ``out_dir`` and return the run's record without its test metrics, which
+    ``graspstab.evaluation.tested_run`` adds (``extra`` keys, e.g. the split assignment's
+    number, are stored with them). The run's
     timings (training seconds, per epoch) differ on every run: they go to the timing sidecar
     ``timing_path`` (when given) and the log, never into ``metrics.json``. ``augment``
     (sensing, trace_paths, trace_keys, dt) trains through the sensing group's sensors
@@ -144,7 +146,7 @@ def train_model(
     n_params = count_parameters(model)
     log.info("%s: %d trainable parameters, %s", model_spec["family"], n_params, settings)
     result = fit(model, data, settings, seed)
-    metrics, predictions = evaluate_splits(
+    threshold, predictions = predict_splits(
         model, data, threshold_settings(train, model_spec), settings.eval_batch_size
     )
     record = {
@@ -161,19 +163,15 @@ def train_model(
         "selection_metric": result.selection_metric,
         "placement": result.placement,
         "history": [{k: v for k, v in row.items() if k != "seconds"} for row in result.history],
-        **metrics,
+        "threshold": threshold,
         **dict(extra or {}),
         "code_version": code_version("learning", "labels"),
         "platform": compute_platform(),
         "params": params,
         "params_hash": stable_hash(params),
     }
-    log.info(
-        "best epoch %d (%s); threshold %.3f (%s); val AUPRC %.4f, test AUPRC %.4f, test F1 %.4f",
-        result.best_epoch, result.selection_metric, metrics["threshold"]["threshold"],
-        metrics["threshold"]["rule"], metrics["val"]["auprc"], metrics["test"]["auprc"],
-        metrics["test"]["f1"],
-    )  # fmt: skip
+    log.info("best epoch %d (%s); threshold %.3f (%s)", result.best_epoch,
+             result.selection_metric, threshold["threshold"], threshold["rule"])  # fmt: skip
     write_parquet(out / "predictions.parquet", predictions)
     if checkpoint:
         # through a file object: given a path, torch names the archive's folder after the file,
@@ -187,15 +185,14 @@ def train_model(
                     "inputs": inputs,
                     "mean": data.mean.tolist(),
                     "std": data.std.tolist(),
-                    "threshold": metrics["threshold"]["threshold"],
+                    "threshold": threshold["threshold"],
                     "params": params,
                 },
                 fh,
             )
-    write_json(out / "metrics.json", record)
     write_timing(timing_path, {
         "train_seconds": result.seconds,
         "seconds_per_epoch": result.seconds / max(len(result.history), 1),
         "epoch_seconds": [row["seconds"] for row in result.history],
     })  # fmt: skip
-    return record
+    return TrainedRun(record, predictions)

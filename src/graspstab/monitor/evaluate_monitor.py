@@ -20,7 +20,6 @@ import torch
 
 from graspstab.common.io import save_npz, write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.learning.data import load_window_data
 from graspstab.monitor.checkpoint import read_trained
 from graspstab.monitor.episodes import summarise_episodes
 from graspstab.monitor.grasp_level import (
@@ -30,22 +29,12 @@ from graspstab.monitor.grasp_level import (
     results_of,
     timeline_grasp,
 )
-from graspstab.monitor.proxy import PROXY, ProxyScorer, select_proxy_threshold
+from graspstab.monitor.proxy import PROXY, proxy_scorer
 from graspstab.monitor.scoring import TorchScorer, WindowScorer
 
 log = logging.getLogger("graspstab.monitor")
 
 TIMELINE_LEAD_S = 4.0  # the timeline figure shows up to this long before the onset (or the end)
-
-
-def proxy_scorer(dataset_dir: str | Path, threshold: Mapping[str, Any]) -> tuple[ProxyScorer, dict]:
-    """The proxy with its threshold chosen on the dataset's validation windows."""
-    data = load_window_data(dataset_dir)
-    rows = data.rows("val")
-    choice = select_proxy_threshold(data.windows[rows], data.labels(rows), threshold)
-    log.info("proxy threshold %.4f (friction ratio %.4f, rule %s) on %d validation windows",
-             choice["threshold"], choice["ratio"], choice["rule"], choice["windows"])  # fmt: skip
-    return ProxyScorer(choice["threshold"]), choice
 
 
 def timeline_record(kept: Mapping[str, Any], scorers: Mapping[str, WindowScorer],

@@ -6,16 +6,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import polars as pl
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
-
-from graspstab.common.io import load_npz, read_json, read_parquet, save_figure  # noqa: E402
-from graspstab.hand.names import FINGERS  # noqa: E402
-from graspstab.monitor.proxy import PROXY  # noqa: E402
+from graspstab.common.io import load_npz, read_json, read_parquet
+from graspstab.common.plotting import no_data, plt, save
+from graspstab.hand.names import FINGERS
+from graspstab.monitor.proxy import PROXY
 
 COLOURS = {"cnn": "tab:blue", "gru": "tab:orange", "lstm": "tab:green", PROXY: "tab:gray"}
 FLOOR = 1e-6  # [m/s] speeds below 1 um/s are drawn at the floor (log axis)
@@ -43,8 +40,7 @@ def plot_lead_times(frame: pl.DataFrame, summary: dict[str, Any], out: str | Pat
     ax.set_title(f"How early the monitors warn ({split} replays, grasps warned before onset)")
     ax.legend(fontsize=7, loc="upper right")
     fig.tight_layout()
-    save_figure(out, fig, dpi=dpi)
-    plt.close(fig)
+    save(fig, out, dpi)
 
 
 def plot_timeline(arrays: dict[str, np.ndarray], summary: dict[str, Any], out: str | Path,
@@ -54,11 +50,11 @@ def plot_timeline(arrays: dict[str, np.ndarray], summary: dict[str, Any], out: s
     info = summary["timeline"]
     fig, axes = plt.subplots(3, 1, figsize=(8.0, 7.0), sharex=True)
     if info.get("object") is None or not len(arrays.get("t", [])):
-        for ax in axes:
-            ax.axis("off")
-        axes[0].text(0.5, 0.5, "no validation or test replay to draw", ha="center")
-        save_figure(out, fig, dpi=dpi)
-        plt.close(fig)
+        for ax in axes[1:]:
+            ax.set_axis_off()
+        no_data(axes[0], "no validation or test replay to draw", color=None, fontsize=None,
+                va="baseline", wrap=False, axis_off=True)  # fmt: skip
+        save(fig, out, dpi)
         return
     t, forces = arrays["t"], arrays["forces"]
     lo, start, end, onset = (int(v) for v in arrays["frames"])
@@ -106,8 +102,7 @@ def plot_timeline(arrays: dict[str, np.ndarray], summary: dict[str, Any], out: s
                       f"grey: before settling", fontsize=9)  # fmt: skip
     axes[2].set_xlim(t[0], max(t[-1], lo * dt + dt))
     fig.tight_layout()
-    save_figure(out, fig, dpi=dpi)
-    plt.close(fig)
+    save(fig, out, dpi)
 
 
 def plot_monitor(

@@ -20,13 +20,12 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.common.io import read_parquet
 from graspstab.labels.interval import usable_interval
+from graspstab.labels.replays import replay_grasps
 from graspstab.labels.windows import timestep_labels
 from graspstab.monitor.episodes import EpisodeResult, evaluate_episode, first_scored
 from graspstab.monitor.scoring import WindowScorer
 from graspstab.monitor.stream import MonitorTrace, score_trace
-from graspstab.replay.traces import TraceFile
 
 log = logging.getLogger("graspstab.monitor")
 
@@ -58,31 +57,24 @@ def read_episodes(
 ) -> Iterator[Episode]:
     """The usable episodes of the (table, traces) pairs whose object's split is in ``keep`` (or
     only the one ``grasp``, (object, grasp id))."""
-    for table_path, traces_path in replays:
-        table = read_parquet(table_path).filter(~pl.col("diverged"))
-        with TraceFile(traces_path) as npz:
-            for g in table.iter_rows(named=True):
-                obj, gid = g["object"], int(g["grasp_id"])
-                if obj not in splits:
-                    raise KeyError(f"{table_path}: object {obj!r} has no split in the object set")
-                if splits[obj] not in keep or grasp not in (None, (obj, gid)):
-                    continue
-                tr = npz.grasp(gid, ("velocity", "min_distance", "normal", "shear"))
-                speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
-                dist = tr["min_distance"].astype(np.float64)
-                ui = usable_interval(speed, dist, dt, labels["settle"], labels["contact_loss_s"])
-                end = ui.contact_end
-                # rejected by the depth rule, or no usable interval at all (the 3 s fallback
-                # settle index lies past a replay that ended before it): no window either
-                if ui.rejected or end <= ui.settle_index:
-                    continue
-                forces = np.stack([tr["normal"][:end], tr["shear"][:end]], axis=-1)
-                yield Episode(
-                    object=obj, grasp_id=gid, split=splits[obj],
-                    forces=forces.astype(np.float32), speed=speed[:end],
-                    u=timestep_labels(speed[:end], labels["v_slip"]), start=ui.settle_index,
-                    end=end, contact_lost=end < len(dist),
-                )  # fmt: skip
+    for g in replay_grasps(replays, splits, ("velocity", "min_distance", "normal", "shear"),
+                           keep, grasp):  # fmt: skip
+        tr = g.traces
+        speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
+        dist = tr["min_distance"].astype(np.float64)
+        ui = usable_interval(speed, dist, dt, labels["settle"], labels["contact_loss_s"])
+        end = ui.contact_end
+        # rejected by the depth rule, or no usable interval at all (the 3 s fallback
+        # settle index lies past a replay that ended before it): no window either
+        if ui.rejected or end <= ui.settle_index:
+            continue
+        forces = np.stack([tr["normal"][:end], tr["shear"][:end]], axis=-1)
+        yield Episode(
+            object=g.object, grasp_id=g.grasp_id, split=g.split,
+            forces=forces.astype(np.float32), speed=speed[:end],
+            u=timestep_labels(speed[:end], labels["v_slip"]), start=ui.settle_index,
+            end=end, contact_lost=end < len(dist),
+        )  # fmt: skip
 
 
 def score_episode(

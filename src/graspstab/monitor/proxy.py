@@ -12,15 +12,20 @@ coarse). It is reported in ratio units too.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from graspstab.evaluation.proxy import friction_ratio
+from graspstab.learning.data import load_window_data
 from graspstab.metrics.classification import select_threshold
 from graspstab.monitor.constants import FRAME_SHAPE, MonitorConstants
 from graspstab.monitor.scoring import check_windows
+
+log = logging.getLogger("graspstab.monitor")
 
 PROXY = "proxy"
 
@@ -73,3 +78,13 @@ def select_proxy_threshold(
                               rule=threshold["rule"])  # fmt: skip
     return {**vars(choice), "ratio": ratio_of(choice.threshold), "grid": "validation scores",
             "windows": int(len(y)), "unstable": int(y.sum())}  # fmt: skip
+
+
+def proxy_scorer(dataset_dir: str | Path, threshold: Mapping[str, Any]) -> tuple[ProxyScorer, dict]:
+    """The proxy with its threshold chosen on the dataset's validation windows."""
+    data = load_window_data(dataset_dir)
+    rows = data.rows("val")
+    choice = select_proxy_threshold(data.windows[rows], data.labels(rows), threshold)
+    log.info("proxy threshold %.4f (friction ratio %.4f, rule %s) on %d validation windows",
+             choice["threshold"], choice["ratio"], choice["rule"], choice["windows"])  # fmt: skip
+    return ProxyScorer(choice["threshold"]), choice

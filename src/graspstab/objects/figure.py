@@ -8,14 +8,10 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
-
-from graspstab.common.io import atomic_path  # noqa: E402
+from graspstab.common.plotting import plt, save
 
 
 def load_parts(object_dir: Path) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -60,6 +56,4 @@ def plot_objects(
         ax.set_axis_off()
         ax.set_title(f"{object_id}\n{len(parts)} convex parts", fontsize=9)
     fig.tight_layout()
-    with atomic_path(out_png) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    plt.close(fig)
+    save(fig, out_png, dpi)

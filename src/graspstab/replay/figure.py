@@ -12,16 +12,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+import polars as pl
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
-
-from graspstab.common.io import read_parquet, save_figure  # noqa: E402
-from graspstab.hand.names import FINGERS  # noqa: E402
-from graspstab.replay.traces import read_traces  # noqa: E402
+from graspstab.common.io import read_parquet
+from graspstab.common.plotting import plt, save
+from graspstab.hand.names import FINGERS
+from graspstab.replay.traces import read_traces
 
 
 def pick_example(summary: pl.DataFrame) -> int:
@@ -74,8 +71,7 @@ def plot_replay_trace(
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    save_figure(out_path, fig, dpi=110)
-    plt.close(fig)
+    save(fig, out_path, 110)
 
 
 def example_traces(

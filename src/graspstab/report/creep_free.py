@@ -28,12 +28,13 @@ SHORT_WINDOW_POINTS = 1.0
 
 @dataclass(frozen=True)
 class Benchmark:
-    """One protocol's artefacts: its dataset and speed summaries, replay tables and studies."""
+    """One protocol's artefacts: its dataset and speed summaries, replay outcome table and
+    studies."""
 
     name: str
     dataset: Path  # datasets/baseline/summary.json
     speeds: Path  # datasets/speeds.json
-    replays: Sequence[Path]
+    replay_outcomes: Path  # replay/outcomes.parquet (rule summarise_replays)
     studies: StudyArtefacts
     speeds_figure: Path | None = None
     sweep_windows_s: Sequence[float] = field(default_factory=tuple)
@@ -63,21 +64,16 @@ def class_mix(b: Benchmark) -> dict[str, dict[str, Any]]:
 
 
 def replay_outcomes(b: Benchmark) -> dict[str, Any]:
-    """How the replays ended: held to the end, contact lost, too deep, and (under the ramp) slid
-    under load with the median time from the slip to the end of contact."""
-    t = pl.concat([read_parquet(p) for p in b.replays], how="diagonal_relaxed")
-    out = {"grasps": t.height, "held": int(t["held_at_end"].sum()),
-           "lost": int((t["stop_reason"] == "contact_lost").sum()),
-           "too_deep": int((t["stop_reason"] == "too_deep").sum()),
-           "diverged": int(t["diverged"].sum())}  # fmt: skip
-    if "ramp_slip_s" in t.columns:
-        slid = t.filter(pl.col("ramp_slip_s").is_not_nan())
-        out["slid"] = slid.height
-        lost = slid.filter(pl.col("contact_loss_s").is_not_nan())
-        out["slip_to_loss_s"] = (
-            float((lost["contact_loss_s"] - lost["ramp_slip_s"]).median()) if lost.height else None
-        )
-        out["peak_load_mg"] = float(t["ramp_peak_load_mg"].median())
+    """How the replays ended (the outcome table's row over all objects): held to the end,
+    contact lost, too deep, and (under the ramp) slid under load with the median time from the
+    slip to the end of contact."""
+    t = read_parquet(b.replay_outcomes).filter(pl.col("object").is_null()).row(0, named=True)
+    out = {"grasps": t["replays"], "held": t["held"], "lost": t["contact_lost"],
+           "too_deep": t["too_deep"], "diverged": t["diverged"]}  # fmt: skip
+    if t["slid"] is not None:
+        out["slid"] = t["slid"]
+        out["slip_to_loss_s"] = t["median_slip_to_loss_s"]
+        out["peak_load_mg"] = t["median_peak_load_mg"]
     return out
 
 

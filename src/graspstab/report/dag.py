@@ -13,12 +13,9 @@ from collections import Counter
 from collections.abc import Mapping
 from pathlib import Path
 
-import matplotlib
+import networkx as nx
 
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt  # noqa: E402
-import networkx as nx  # noqa: E402
+from graspstab.common.plotting import plt, save
 
 # Half a rule box's height in row units (rows are 0.8 in apart, a box about 0.4 in tall).
 BOX_HALF_HEIGHT = 0.3
@@ -155,8 +152,7 @@ def draw_rule_graph(graph: nx.DiGraph, counts: Mapping[str, int], dpi: int = 110
     ax.axis("off")
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    save(fig, buf, dpi, tight=True)
     return buf.getvalue()
 
 

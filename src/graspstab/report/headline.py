@@ -6,7 +6,7 @@ from a reproduction. An undefined value prints as "undefined" with its reason, n
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,7 +18,6 @@ from graspstab.figures.artefacts import StudyArtefacts
 from graspstab.figures.presentation import (
     SPLIT_NAMES,
     UNDEFINED,
-    defined_summary,
     family_label,
     finite,
 )
@@ -48,25 +47,24 @@ class Figure:
         return f"{m} % (std {UNDEFINED}: {self.reason or 'no value'})"
 
 
-def _class_reason(rows: pl.DataFrame, split: str) -> str:
-    """Why a ranking metric is undefined on a split: no unstable or no stable window."""
+def _class_reason(row: Mapping[str, Any], split: str) -> str:
+    """Why a ranking metric is undefined on a split (a seed summary's row): no unstable or no
+    stable window in any run, or no seed gave a value."""
     name = SPLIT_NAMES.get(split, split)
-    if rows.height and (rows["n_unstable"] == 0).all():
+    if row.get("no_unstable"):
         return f"the {name} split holds no unstable window"
-    if rows.height and (rows["n_unstable"] == rows["n"]).all():
+    if row.get("no_stable"):
         return f"the {name} split holds no stable window"
     return "no seed gave a defined value"
 
 
-def seed_figure(runs: pl.DataFrame, by: Sequence[str], metric: str, digits: int = 2) -> Figure:
-    """Mean ± std over seeds of ``metric`` in the runs already filtered to one configuration
-    (0/0 metrics undefined, as in the report's tables), with the reason when undefined."""
-    if runs.is_empty():
-        return Figure(reason="no run of this configuration")
-    row = defined_summary(runs, list(by)).row(0, named=True)
+def seed_figure(row: Mapping[str, Any], metric: str, digits: int = 2) -> Figure:
+    """Mean ± std over seeds of ``metric`` from one row of a study's seed summary
+    (``summary_defined.parquet``: 0/0 metrics undefined, as in the report's tables), with the
+    reason when undefined."""
     mean, std, n = row[f"{metric}_mean"], row[f"{metric}_std"], row.get(f"{metric}_n", 0)
     if not finite(mean):
-        return Figure(reason=_class_reason(runs, str(runs["split"][0])), digits=digits)
+        return Figure(reason=_class_reason(row, str(row["split"])), digits=digits)
     reason = "" if finite(std) else f"{n} seed{'s' if n != 1 else ''} defined it"
     return Figure(mean, std if finite(std) else None, reason, digits)
 
@@ -76,29 +74,30 @@ def _absent(path: Path | None) -> str:
     return "not given to the report" if path is None else f"{path} not produced"
 
 
-def _runs(path: Path | None, **where: Any) -> pl.DataFrame | str:
-    """The rows of a runs.parquet matching ``where`` (window_s matched to the microsecond), or
-    why there are none."""
+def _summary(path: Path | None, **where: Any) -> pl.DataFrame | str:
+    """The rows of a seed summary (summary_defined.parquet) matching ``where`` (window_s matched
+    to the microsecond), or why there are none."""
     if path is None or not Path(path).exists():
         return _absent(path)
-    runs = read_parquet(path)
+    rows = read_parquet(path)
     for col, value in where.items():
-        if col not in runs.columns:
-            return f"{path.name} has no column {col!r}"
-        runs = runs.filter(
+        if col not in rows.columns:
+            return f"{Path(path).name} has no column {col!r}"
+        rows = rows.filter(
             (pl.col(col) - value).abs() < 1e-6 if isinstance(value, float) else pl.col(col) == value
         )
-    return runs
+    return rows
 
 
 def baseline_figure(a: StudyArtefacts, family: str, split: str, metric: str) -> Figure:
-    """A metric of one family at the baseline window (4.3), mean ± std over seeds."""
-    runs = _runs(a.baseline_runs, family=family, split=split)
-    if isinstance(runs, str):
-        return Figure(reason=runs)
-    if runs.is_empty():
+    """A metric of one family at the baseline window (4.3), mean ± std over seeds (``a``'s
+    ``baseline_summary_defined``: a :class:`~graspstab.figures.artefacts.StudyArtefacts`)."""
+    rows = _summary(a.baseline_summary_defined, family=family, split=split)
+    if isinstance(rows, str):
+        return Figure(reason=rows)
+    if rows.is_empty():
         return Figure(reason=f"no {family_label(family)} run in this run's baseline study")
-    return seed_figure(runs, ["family", "split"], metric)
+    return seed_figure(rows.row(0, named=True), metric)
 
 
 def proxy_figure(a: StudyArtefacts) -> Figure:
@@ -134,17 +133,18 @@ def splits_figure(a: StudyArtefacts) -> Figure:
 
 
 def sweep_figure(a: StudyArtefacts, family: str, window_s: float) -> Figure:
-    """Validation AUPRC of one sweep configuration (4.5), mean ± std over seeds."""
-    runs = _runs(a.sweep_runs, family=family, split="val")
-    if isinstance(runs, str):
-        return Figure(reason=runs, digits=3)
-    windows = sorted({float(w) for w in runs["window_s"]})
-    runs = runs.filter((pl.col("window_s") - window_s).abs() < 1e-6)
-    if runs.is_empty():
+    """Validation AUPRC of one sweep configuration (4.5), mean ± std over seeds (read from
+    ``a.sweep_summary_defined``)."""
+    rows = _summary(a.sweep_summary_defined, family=family, split="val")
+    if isinstance(rows, str):
+        return Figure(reason=rows, digits=3)
+    windows = sorted({float(w) for w in rows["window_s"]})
+    rows = rows.filter((pl.col("window_s") - window_s).abs() < 1e-6)
+    if rows.is_empty():
         have = ", ".join(f"{w:g}" for w in windows) or "none"
         return Figure(reason=f"{family_label(family)} at {window_s:g} s is not in this run's sweep "
                       f"(windows [s]: {have})", digits=3)  # fmt: skip
-    return seed_figure(runs, ["family", "window_s", "split"], "auprc", digits=3)
+    return seed_figure(rows.row(0, named=True), "auprc", digits=3)
 
 
 # (section, quantity, reference value as the thesis prints it, this run's figure)
@@ -211,19 +211,21 @@ def protocol_of(config: Mapping[str, Any]) -> dict[str, Any]:
 def run_scale(
     config: Mapping[str, Any],
     n_objects: int,
-    grasp_summaries: Sequence[Mapping[str, Any]],
+    totals: Mapping[str, Any] | None,
     dataset: Mapping[str, Any] | None,
 ) -> dict[str, Any]:
-    """The numbers that say how big this run is (and so how much its figures can mean)."""
+    """The numbers that say how big this run is (and so how much its figures can mean):
+    ``totals`` is the grasp funnel's row over all objects (rule ``summarise_funnel``: candidate
+    grasps annealed, usable grasps), ``dataset`` the baseline dataset's summary."""
     splits = (dataset or {}).get("splits", {})
     windows = {s: sum(splits.get(s, {}).get(c, 0) for c in ("stable", "unstable")) for s in SPLITS}
     train, tune = config.get("train", {}), config.get("tune", {})
+    totals = totals or {}
     return {
         "profile": config.get("profile_name", "?"),
         "objects": n_objects,
-        "candidate_grasps": sum(int(s.get("grasps", 0)) for s in grasp_summaries),
-        "usable_grasps": sum(int(splits.get(s, {}).get("grasps", 0)) for s in SPLITS)
-        if dataset else None,
+        "candidate_grasps": totals.get("annealed") or 0,
+        "usable_grasps": totals.get("usable") if dataset else None,
         "windows": windows if dataset else None,
         "seeds": list(train.get("seeds", [])),
         "max_epochs": train.get("max_epochs"),

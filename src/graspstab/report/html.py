@@ -1,4 +1,5 @@
-"""Tiny HTML building blocks: escaped tables and base64-embedded images (no external requests)."""
+"""Tiny HTML building blocks: escaped tables, base64-embedded images (no external requests) and
+numbers formatted for a cell."""
 
 from __future__ import annotations
 
@@ -9,10 +10,18 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+from graspstab.figures.presentation import UNDEFINED, finite
+
 
 def esc(value: Any) -> str:
     """Escape any value for HTML text."""
     return html.escape(str(value))
+
+
+def fmt(value: Any, spec: str = ".1f", scale: float = 1.0) -> str:
+    """A number formatted by ``spec`` (times ``scale``), or "undefined" for None/NaN (strict
+    JSON stores an undefined value as null)."""
+    return format(float(value) * scale, spec) if finite(value) else UNDEFINED
 
 
 def table(

@@ -2,7 +2,8 @@
 reference's published numbers, the threshold-rule warning, and the chapter's figures.
 
 Every table reads one study artefact of the :class:`~graspstab.figures.artefacts.StudyArtefacts`
-it is given (no other file); a missing artefact gives a note instead of the table. NaN (an
+it is given (no other file; the means and stds over seeds are the aggregation jobs'
+``summary_defined.parquet``); a missing artefact gives a note instead of the table. NaN (an
 undefined metric, e.g. validation AUPRC when the validation split holds no unstable window)
 renders as "undefined". The tables live in :mod:`graspstab.report.learning_tables` and
 :mod:`graspstab.report.study_tables`; nothing here imports a plotting module.
@@ -16,7 +17,7 @@ from typing import Any
 
 from graspstab.common.io import read_json, read_parquet
 from graspstab.figures.artefacts import StudyArtefacts, exists, record, splits_family, table
-from graspstab.figures.presentation import LEARNING_FIGURES, defined_summary
+from graspstab.figures.presentation import LEARNING_FIGURES
 from graspstab.report import html as H
 from graspstab.report.learning_tables import (
     baseline_table,
@@ -140,8 +141,8 @@ def _baseline_parts(a: StudyArtefacts, figures: Mapping[str, Path], config: Mapp
         *_block("Parameters (table 4.2)", a.baseline_overview, read_json, parameters_table),
         *_block(
             "Fixed-task benchmark (section 4.3)",
-            a.baseline_runs,
-            lambda p: defined_summary(read_parquet(p), ["family", "split"]),
+            a.baseline_summary_defined,
+            read_parquet,
             lambda s: [baseline_table(s)],
             anchor="baseline-benchmark",
         ),
@@ -153,11 +154,12 @@ def _baseline_parts(a: StudyArtefacts, figures: Mapping[str, Path], config: Mapp
 
 def _threshold_parts(a: StudyArtefacts) -> list[str]:
     head = H.heading(3, "threshold-rules", "Threshold rules")
-    paths = {"baseline": a.baseline_runs, "sweep": a.sweep_runs, "splits": a.splits_runs}
-    runs = {s: read_parquet(p) for s, p in paths.items() if exists(p)}
-    if not runs:
-        return [head, missing(a.baseline_runs)]
-    table_html, problems = rule_counts(runs)
+    paths = {"baseline": a.baseline_threshold_rules, "sweep": a.sweep_threshold_rules,
+             "splits": a.splits_threshold_rules}  # fmt: skip
+    records = {s: read_json(p) for s, p in paths.items() if exists(p)}
+    if not records:
+        return [head, missing(a.baseline_threshold_rules)]
+    table_html, problems = rule_counts(records)
     return [head, rule_warning(problems), table_html]
 
 
@@ -166,8 +168,8 @@ def _sweep_parts(a: StudyArtefacts, figures: Mapping[str, Path]) -> list[str]:
     return [
         *_block(
             "Window-length sweep (section 4.5, fig. 4.5)",
-            a.sweep_runs,
-            lambda p: defined_summary(read_parquet(p), ["family", "window_s", "split"]),
+            a.sweep_summary_defined,
+            read_parquet,
             sweep_table,
             anchor="sweep",
         ),

@@ -4,7 +4,6 @@ numbers, and the formatting every learning table shares ("undefined" for NaN, ne
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -193,31 +192,31 @@ def errors_table(errors: pl.DataFrame) -> str:
     )
 
 
-def rule_counts(runs: Mapping[str, pl.DataFrame]) -> tuple[str, list[str]]:
+def rule_counts(records: Mapping[str, Mapping[str, Any]]) -> tuple[str, list[str]]:
     """A table of threshold rules per study (one count per run) and the problems found: runs
-    whose rule is 'undefined' and validation ranking metrics that are NaN."""
+    whose rule is 'undefined' and validation ranking metrics that are NaN. ``records``: study ->
+    its ``threshold_rules.json`` (:func:`graspstab.evaluation.aggregate.threshold_rules`, written
+    by the study's aggregation job)."""
     rules = ("min_recall", "best_f1", UNDEFINED)
     body, problems = [], []
-    for study, frame in runs.items():
-        val = frame.filter(pl.col("split") == "val")
-        counts = Counter(val["threshold_rule"].to_list())
+    for study, record in records.items():
+        counts = dict(record["rules"])
+        runs = record["runs"]
         body.append(
             [
                 study,
-                len(val),
+                runs,
                 *[counts.get(r, 0) for r in rules],
                 ", ".join(f"{k} {v}" for k, v in counts.items() if k not in rules) or "—",
             ]
         )
-        nan = val.filter(pl.col("auprc").is_nan() | pl.col("auroc").is_nan())
-        if counts.get(UNDEFINED) or nan.height:
-            no_pos = int((nan["n_unstable"] == 0).sum())
-            no_neg = int((nan["n_unstable"] == nan["n"]).sum())
+        undefined = record["undefined_validation_metrics"]
+        if counts.get(UNDEFINED) or undefined:
             problems.append(
-                f"{study}: {counts.get(UNDEFINED, 0)} of {len(val)} runs with rule 'undefined', "
-                f"{nan.height} with undefined validation AUROC/AUPRC ({no_pos} whose validation "
-                f"split held no unstable window, {no_neg} whose validation split held no stable "
-                "window)"
+                f"{study}: {counts.get(UNDEFINED, 0)} of {runs} runs with rule 'undefined', "
+                f"{undefined} with undefined validation AUROC/AUPRC ({record['no_unstable']} "
+                "whose validation split held no unstable window, "
+                f"{record['no_stable']} whose validation split held no stable window)"
             )
     table = H.table(
         ["study", "runs", *rules, "other"],

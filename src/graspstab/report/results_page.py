@@ -31,6 +31,7 @@ from graspstab.common.io import read_json, read_parquet, write_text
 from graspstab.common.provenance import cpu_model
 from graspstab.figures.artefacts import StudyArtefacts
 from graspstab.figures.presentation import family_label, finite
+from graspstab.report.funnel import funnel_total, read_funnel
 from graspstab.report.headline import (
     HEADLINE,
     baseline_figure,
@@ -112,7 +113,9 @@ def _studies(root: Path) -> StudyArtefacts:
     s = root / "studies"
     return StudyArtefacts(
         baseline_runs=s / "baseline" / "runs.parquet",
+        baseline_summary_defined=s / "baseline" / "summary_defined.parquet",
         sweep_runs=s / "sweep" / "runs.parquet",
+        sweep_summary_defined=s / "sweep" / "summary_defined.parquet",
         splits_overview=s / "splits" / "summary.json",
         latency=s / "latency.parquet",
         proxy=s / "proxy.json",
@@ -234,12 +237,12 @@ def record(
     if not (results / "report.html").is_file():
         raise SystemExit(f"{results / 'report.html'} is missing: is {workdir} a finished run?")
     config = resolved(*locate(repo / "config", None), config_entries(command))
-    grasps = sorted((results / "grasps").glob("*/summary.json"))
+    funnel = results / "report" / "funnel.parquet"
     dataset = results / "datasets" / "baseline" / "summary.json"
     scale = run_scale(
         config,
         len(list((results / "objects").glob("*/meta.json"))),
-        [read_json(p) for p in grasps],
+        funnel_total(read_funnel(funnel)) if funnel.is_file() else None,
         read_json(dataset) if dataset.is_file() else None,
     )
     scale["test_objects"] = sorted(

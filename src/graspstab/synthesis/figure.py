@@ -17,18 +17,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-import matplotlib
+import numpy as np
+import polars as pl
+import trimesh
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import polars as pl  # noqa: E402
-import trimesh  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-
-from graspstab.hand.names import FINGERS, FINGERTIP_BODIES  # noqa: E402
-from graspstab.synthesis.figure_data import (  # noqa: E402
+from graspstab.common.plotting import plt
+from graspstab.hand.names import FINGERS, FINGERTIP_BODIES
+from graspstab.synthesis.figure_data import (
     FigureInputError,
     energy_floor,
     grasp_arrays,
@@ -36,7 +33,7 @@ from graspstab.synthesis.figure_data import (  # noqa: E402
     require_columns,
     select_gallery_grasps,
 )
-from graspstab.synthesis.figure_draw import (  # noqa: E402
+from graspstab.synthesis.figure_draw import (
     Arrow3D,
     add_meshes,
     add_scale_bar,
@@ -44,7 +41,7 @@ from graspstab.synthesis.figure_draw import (  # noqa: E402
     setup_axes,
     unit,
 )
-from graspstab.synthesis.figure_meshes import (  # noqa: E402
+from graspstab.synthesis.figure_meshes import (
     HAND_CELL_DETAIL,
     HAND_CELL_GALLERY,
     OBJECT_FACES_DETAIL,

@@ -3,7 +3,7 @@
 Apart from the three figures (:mod:`graspstab.synthesis.figure`), which compose these. Meshes are
 drawn as one shaded ``Poly3DCollection`` per panel (object, hand and hull together, so
 matplotlib's per-triangle depth sort orders them against each other). Files are written
-atomically by :func:`graspstab.common.io.save_figure`.
+atomically by :func:`graspstab.common.plotting.save`.
 """
 
 from __future__ import annotations
@@ -12,17 +12,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
+import numpy as np
+from matplotlib.patches import FancyArrowPatch
+from mpl_toolkits.mplot3d import proj3d
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import FancyArrowPatch  # noqa: E402
-from mpl_toolkits.mplot3d import proj3d  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
-
-from graspstab.common.io import save_figure  # noqa: E402
-from graspstab.synthesis.figure_meshes import Surface  # noqa: E402
+from graspstab.common.plotting import save
+from graspstab.synthesis.figure_meshes import Surface
 
 DPI = 120
 #: Back-face culling threshold on cos(shading normal, view); below zero so that silhouettes of
@@ -147,17 +143,8 @@ class Arrow3D(FancyArrowPatch):
 def save_png(fig: Any, out_path: str | Path, tight: bool = True) -> Path:
     """Write ``fig`` as a PNG atomically (dpi :data:`DPI`) and close it; ``tight`` crops the
     margins (at the cost of drawing the figure twice)."""
-    out = Path(out_path)
-    save_figure(
-        out,
-        fig,
-        format="png",
-        dpi=DPI,
-        bbox_inches="tight" if tight else None,
-        facecolor="white",
-    )
-    plt.close(fig)
-    return out
+    save(fig, out_path, DPI, tight=tight, facecolor="white")
+    return Path(out_path)
 
 
 def unit(v: np.ndarray) -> np.ndarray:
