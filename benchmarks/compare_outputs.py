@@ -6,11 +6,12 @@ every output alone can be shown to (docs/testing.md, "Outputs unchanged").
     python benchmarks/compare_outputs.py OLD/results NEW/results [--include-figures]
 
 Compared: every file except logs, Snakemake's benchmark files, timing sidecars (wall times differ
-on every run), Optuna's study databases (trial timestamps), the HTML report and Snakemake's
-graphs (``.dot``, their edge order varies); PNG figures only with ``--include-figures``. A zip
-container (a TorchScript export, ``.npz``) is compared member by member, and a Parquet file by
-its data and masked metadata. Prints one line per differing or missing file and a count per
-outcome; exits 1 when any file differs or is missing on one side.
+on every run), Optuna's study databases (trial timestamps), the HTML report and Snakemake's graphs
+(``.dot``, their edge order varies); PNG figures only with ``--include-figures``. A zip container
+(a TorchScript export, ``.npz``) is compared member by member, without a TorchScript archive's
+random save id and with each run's checkout path (the results folder's parent, which its debug
+tables name) masked; a Parquet file by its data and masked metadata. Prints one line per differing
+or missing file and a count per outcome; exits 1 when any file differs or is missing on one side.
 """
 
 from __future__ import annotations
@@ -32,9 +33,21 @@ def masked(data: bytes) -> bytes:
     return CODE_VERSION.sub(lambda m: b"v" * len(m.group(0)), data)
 
 
-def _members(path: Path) -> dict[str, bytes]:
+# A TorchScript archive's random save id, and its debug tables name the source files they were
+# traced from by absolute path (the checkout's): neither is the model.
+SAVE_ID = "/.data/serialization_id"
+
+
+def _members(path: Path, root: Path) -> dict[str, bytes]:
+    """A zip's members, masked, with the run's checkout path (``root``) replaced by a placeholder
+    and a TorchScript archive's save id left out."""
+    checkout = str(root.resolve()).encode()
     with zipfile.ZipFile(path) as z:
-        return {i.filename: masked(z.read(i)) for i in z.infolist()}
+        return {
+            i.filename: masked(z.read(i)).replace(checkout, b"<checkout>")
+            for i in z.infolist()
+            if not i.filename.endswith(SAVE_ID)
+        }
 
 
 def _parquet(path: Path) -> tuple[object, dict[bytes, bytes]]:
@@ -48,18 +61,23 @@ def _parquet(path: Path) -> tuple[object, dict[bytes, bytes]]:
     return table.replace_schema_metadata(None), meta
 
 
-def same(a: Path, b: Path) -> tuple[bool, bool]:
-    """(same after masking, same byte for byte)."""
+def same(a: Path, b: Path, roots: tuple[Path, Path] | None = None) -> tuple[bool, bool]:
+    """(same after masking, same byte for byte); ``roots``: the two runs' checkouts."""
     da, db = a.read_bytes(), b.read_bytes()
     if da == db:
         return True, True
     if zipfile.is_zipfile(a) and zipfile.is_zipfile(b):
-        return _members(a) == _members(b), False
+        ra, rb = roots or (a.parent, b.parent)
+        return _members(a, ra) == _members(b, rb), False
     if masked(da) == masked(db):
         return True, False
     if a.suffix == ".parquet":
+        import polars as pl
+
         (ta, ma), (tb, mb) = _parquet(a), _parquet(b)
-        return ta.equals(tb) and ma == mb, False
+        # polars compares NaN equal to NaN (pyarrow's Table.equals does not)
+        same_data = ta.schema == tb.schema and pl.from_arrow(ta).equals(pl.from_arrow(tb))
+        return same_data and ma == mb, False
     return False, False
 
 
@@ -90,7 +108,7 @@ def compare(old: Path, new: Path, figures: bool = False) -> tuple[Counter, list[
             counts["only in new"] += 1
             lines.append(f"only in {new}: {rel}")
         else:
-            equal, exact = same(old / rel, new / rel)
+            equal, exact = same(old / rel, new / rel, (old.parent, new.parent))
             key = "differ" if not equal else "identical" if exact else "same but code version"
             counts[key] += 1
             if not equal:

@@ -25,7 +25,7 @@ def _tree(root: Path, version: str, value: float = 1.0, log: str = "a") -> Path:
     (res / "datasets" / "summary.json").write_text(
         json.dumps({"windows": 3, "provenance": {"code_version": version}})
     )
-    table = pl.DataFrame({"x": [value, 2.0]}).to_arrow()
+    table = pl.DataFrame({"x": [value, 2.0], "undefined": [float("nan"), 1.0]}).to_arrow()
     table = table.replace_schema_metadata({"provenance": json.dumps({"code_version": version})})
     import pyarrow.parquet as pq
 
@@ -33,6 +33,9 @@ def _tree(root: Path, version: str, value: float = 1.0, log: str = "a") -> Path:
     with zipfile.ZipFile(res / "datasets" / "model.pt", "w") as z:
         z.writestr("extra/provenance.json", json.dumps({"code_version": version}))
         z.writestr("data/0", b"weights")
+        # a TorchScript archive's random save id, and its debug table naming the checkout
+        z.writestr("archive/.data/serialization_id", str(abs(hash(str(root)))))
+        z.writestr("archive/code/m.py.debug_pkl", f"{root.resolve()}/src/graspstab/m.py:1")
     (res / "datasets" / "train.timing.json").write_text(json.dumps({"s": value}))
     return res
 
