@@ -210,6 +210,9 @@ def test_the_study_from_fold_predictions_to_the_report_section(tmp_path):
     data.mkdir()
     write_parquet(data / "index.parquet", index)
     save_npy(data / "windows.npy", windows)
+    # half the windows' objects move over their observation period (those are moving-now)
+    moving = (np.arange(index.height) % 2 == 0).astype(np.float32)[:, None] * np.ones((1, 3))
+    save_npy(data / "motion.npy", np.stack([moving, 0.01 * moving], -1).astype(np.float32))
     write_json(
         data / "normalisation.json",
         {"mean": np.zeros((5, 2)).tolist(), "std": np.ones((5, 2)).tolist(), "eps": 1e-6},
@@ -281,6 +284,15 @@ def test_the_study_from_fold_predictions_to_the_report_section(tmp_path):
     )
     assert summary["tested_objects"] == objects and summary["folds"] == 3
     assert summary["pooled"]["gru"]["windows"] == index.height
+    # the still-now windows (odd sample ids), the persistence oracle beside the scorers
+    still = summary["pooled_still"]
+    assert still["gru"]["windows"] == index.height // 2 and "persistence" in still
+    assert still["gru"]["chance"] == pytest.approx(y[1::2].mean())
+    assert still["persistence"]["auroc"] == pytest.approx(0.5)  # it scores every one 0
+    assert summary["oracle"]["windows"] == index.height
+    assert {r["scorer"] for r in summary["paired_still"]} >= {"gru"}
+    assert summary["answer_still"].startswith(
+        "Under the reference protocol, on the still-now test windows of unseen objects")
     paired = {(r["scorer"], r["metric"]): r for r in summary["paired"]}
     assert paired[("gru", "auprc")]["verdict"] == "learned better"
     assert "beats the friction-ratio proxy" in summary["answer"]

@@ -88,3 +88,23 @@ def test_input_validation_and_one_class() -> None:
         proxy_metrics(np.array([0.1, np.inf]), np.array([0, 1]))
     m = proxy_metrics(np.array([0.1, 0.2]), np.array([1, 1]))
     assert np.isnan(m["auprc"]) and np.isnan(m["auroc"])
+
+
+def test_evaluate_proxy_gives_still_now_blocks_and_the_persistence_oracle(tmp_path) -> None:
+    """The proxy's record adds the still-now and moving-now windows of each split, and the
+    persistence oracle: it ranks moving windows above still ones and cannot rank still ones."""
+    import json
+
+    from graspstab.evaluation.studies import evaluate_proxy
+    from tests.test_learning_train import write_dataset
+
+    data = write_dataset(tmp_path / "ds", {"train": 6, "val": 30, "test": 30})
+    out = evaluate_proxy(data, tmp_path / "proxy.json")
+    assert json.loads((tmp_path / "proxy.json").read_text())["test_still"]["n"] == 40
+    for split in ("val", "test"):
+        assert out[f"{split}_still"]["n"] + out[f"{split}_moving"]["n"] == out[split]["n"]
+        oracle = out["persistence"]
+        assert oracle[split]["n"] == out[split]["n"]
+        assert oracle[f"{split}_still"]["auroc"] == pytest.approx(0.5)  # every score is 0
+        assert oracle[f"{split}_still"]["auprc"] == pytest.approx(
+            oracle[f"{split}_still"]["chance"])  # fmt: skip

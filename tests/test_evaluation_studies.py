@@ -93,6 +93,16 @@ def test_split_summary_statistics() -> None:
     assert summary["fixed_split"] == pytest.approx(0.82)
     assert [h["assignment"] for h in summary["hardest"]] == [3, 1]
     assert summary["per_assignment"][3]["seeds"] == 2
+    assert "still" not in summary  # runs written without still-now columns
+    # with them: the same statistics of the still-now test AUPRC, per assignment its windows
+    still = frame.with_columns((pl.col("auprc") - 0.1).alias("still_auprc"),
+                               pl.lit(30).alias("still_n"), pl.lit(6).alias("still_n_unstable"),
+                               pl.lit(0.2).alias("still_chance"))  # fmt: skip
+    got = aggregate.split_summary(still, hardest=2)
+    assert got["still"]["mean"] == pytest.approx((means - 0.1).mean())
+    assert got["still"]["fixed_split"] == pytest.approx(0.72)
+    assert got["per_assignment"][1]["still_n_unstable"] == 6
+    assert got["mean"] == summary["mean"]  # the all-window figures do not move
 
 
 def test_error_table_rates() -> None:

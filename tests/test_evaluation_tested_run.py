@@ -39,6 +39,14 @@ def test_training_writes_no_metric_and_the_tested_run_adds_them(dataset, tmp_pat
                           record["threshold"]["threshold"])  # fmt: skip
     assert again["test"] == pytest.approx(record["test"], nan_ok=True)
     assert record["threshold"] == run.record["threshold"]
+    # the still-now and moving-now windows (every third window moves, see write_dataset)
+    preds = run.predictions.filter(pl.col("split") == "test")
+    moving = preds["sample_id"].to_numpy() % 3 == 0
+    assert record["test_still"]["n"] + record["test_moving"]["n"] == record["test"]["n"]
+    assert record["test_moving"]["n"] == moving.sum()
+    y, p = preds["label"].to_numpy(), preds["prob"].to_numpy()
+    assert record["test_still"]["auprc"] == pytest.approx(
+        average_precision_score(y[~moving], p[~moving]))  # fmt: skip
 
 
 def test_split_metrics_against_scikit_learn_and_per_object() -> None:

@@ -71,7 +71,8 @@ def write_dataset(
 ) -> Path:
     """Write a dataset directory in label_windows' layout: 40 % unstable windows per object whose
     shear rises (and normal load dips) over the last 8 steps; ``planted=False`` then permutes
-    the labels within each object so they are independent of the windows."""
+    the labels within each object so they are independent of the windows. Every third window's
+    object moves over its observation period (its motion), the others are still."""
     rng = np.random.default_rng(seed)
     ramp = np.clip((np.arange(W) - (W - 8)) / 7, 0.0, 1.0)[None, :, None]
     rows, chunks = [], []
@@ -99,6 +100,10 @@ def write_dataset(
     windows = np.concatenate(chunks)
     root.mkdir(parents=True, exist_ok=True)
     np.save(root / "windows.npy", windows)
+    # the object moves over the whole observation period of every third window: those are
+    # moving-now, the rest still-now (labels.dataset.MOTION: u_t, speed)
+    moving = (np.arange(len(windows)) % 3 == 0)[:, None] * np.ones((1, W))
+    np.save(root / "motion.npy", np.stack([moving, 0.002 * moving], -1).astype(np.float32))
     index.write_parquet(root / "index.parquet")
     (root / "normalisation.json").write_text(json.dumps(normalisation(windows, index)))
     return root

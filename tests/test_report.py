@@ -403,6 +403,33 @@ def _record(family: str, seed: int, val_unstable: float, **extra: Any) -> dict[s
     return {**rec, **extra}
 
 
+def _block(n: int, pos: int, auprc: float | None = None, auroc: float | None = None) -> dict:
+    """A still-now (moving-now) block as evaluation.detection.ranked writes it (null: NaN)."""
+    return {"n": n, "n_unstable": pos, "chance": pos / n if n else None, "auprc": auprc,
+            "auroc": auroc}  # fmt: skip
+
+
+#: Planted still-now test blocks of the baseline runs per (family, seed): the CNN's AUPRC 0.61 and
+#: 0.63 (62.00 ± 1.41 %), the GRU's still-now test windows never become unstable (undefined), the
+#: LSTM's 0.5 in both seeds. Validation never slips: every still-now validation metric undefined.
+STILL = {
+    ("cnn", 42): _block(40, 10, 0.61, 0.71), ("cnn", 43): _block(40, 10, 0.63, 0.73),
+    ("gru", 42): _block(40, 0), ("gru", 43): _block(40, 0),
+    ("lstm", 42): _block(40, 10, 0.5, 0.55), ("lstm", 43): _block(40, 10, 0.5, 0.55),
+}  # fmt: skip
+#: The proxy's record beside its all-windows block: still now and the persistence oracle.
+PROXY_STILL = {
+    "test_still": _block(40, 10, 0.4444, 0.5555), "test_moving": _block(125, 0),
+    "persistence": {"test": _block(165, 10, 0.7777, 0.8888),
+                    "test_still": _block(40, 10, 0.25, 0.5)},
+}  # fmt: skip
+
+
+def _motion_records(family: str, seed: int) -> dict[str, Any]:
+    return {"test_still": STILL[(family, seed)], "val_still": _block(30, 0),
+            "test_moving": _block(40, 10, 0.9, 0.9), "val_moving": _block(25, 0)}  # fmt: skip
+
+
 def _monitor_artefacts(root: Path, figs: dict[str, Path]) -> dict[str, Path]:
     """The streaming monitor's artefacts as rule report gets them: a summary with one failing
     grasp warned in time per split and no stable grasp (its rates undefined), two figures and
@@ -499,9 +526,10 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
     for f in FAMILIES:
         for seed in (42, 43):
             paths.append(r / "train" / "baseline" / f / f"seed{seed}" / "metrics.json")
-            write_json(paths[-1], _record(f, seed, 0.0))
+            write_json(paths[-1], _record(f, seed, 0.0, **_motion_records(f, seed)))
     studies.aggregate_baseline(paths, s / "baseline")
-    sweep = [_record("lstm", seed, 0.3, window_s=w) for seed in (42, 43) for w in (0.01, 0.02)]
+    sweep = [_record("lstm", seed, 0.3, window_s=w, test_still=_block(20, 5, 0.3333 + w, 0.6))
+             for seed in (42, 43) for w in (0.01, 0.02)]  # fmt: skip
     sweep_runs = aggregate.run_rows(sweep, [{"window_s": x["window_s"]} for x in sweep])
     write_parquet(s / "sweep" / "runs.parquet", sweep_runs)
     write_parquet(s / "sweep" / "summary_defined.parquet",
@@ -518,7 +546,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         "fixed_split": 0.8, "hardest": [], "per_assignment": [],
     })  # fmt: skip
     write_json(s / "proxy.json", {"test": {"auprc": 0.55, "auroc": 0.6, "n": 165,
-                                           "n_unstable": 10}})  # fmt: skip
+                                           "n_unstable": 10}, **PROXY_STILL})  # fmt: skip
     graph, _ = dag.read_graph(graphs["rulegraph"], graphs["dag"])
     for rule in graph:  # every rule benchmarked, so the stage table has a row for each
         if rule not in bench and rule != "report":
@@ -610,6 +638,86 @@ def test_synthetic_report_headline_and_provenance(synthetic_report: Path) -> Non
     # benchmark (37 s + i): the replay tables hold no wall time (a measurement, not data)
     for i, obj in enumerate(OBJECTS):
         assert re.search(rf"<td>{obj}</td>(<td>[^<]*</td>){{6}}<td>4</td><td>{37 + i}</td>", html)
+
+
+def _section(html: str, start: str, end: str) -> str:
+    """The HTML between the ids ``start`` and ``end``."""
+    return html[html.index(f'id="{start}"') : html.index(f'id="{end}"')]
+
+
+def _cells(*cells: str) -> str:
+    """A regex of consecutive table cells ('*': any cell text)."""
+    return "".join("<td>[^<]*</td>" if c == "*" else f"<td>{re.escape(c)}</td>" for c in cells)
+
+
+def test_synthetic_report_prediction_not_detection(synthetic_report: Path) -> None:
+    """The planted still-now numbers in the headline, the benchmark, the sweep and the proxy's
+    tables, beside the all-windows ones; an undefined still-now metric prints its reason."""
+    html = synthetic_report.read_text()
+    head = _section(html, "headline", "pipeline")
+    assert "recognising motion already under way" in head and "early warning proper" in head
+    never = "undefined: no still-now test window becomes unstable"
+    for row in [
+        ("CNN (baseline window, mean ± std over seeds)", "AUPRC 98.03 % (one saved checkpoint)",
+         "*", "62.00 ± 1.41 %", "*", "72.00 ± 1.41 %", "40", "10", "25.00 %"),
+        ("GRU (baseline window, mean ± std over seeds)", "*", "*", never, "*", never, "40", "0",
+         "0.00 %"),
+        ("LSTM (baseline window, mean ± std over seeds)", "*", "*", "50.00 ± 0.00 %", "*",
+         "55.00 ± 0.00 %", "40", "10", "25.00 %"),
+        ("friction-ratio proxy", "AUPRC 96.27 %", "55.00 %", "44.44 %", "60.00 %", "55.55 %",
+         "40", "10", "25.00 %"),
+        ("persistence oracle (reads object motion: a reference line, not a monitor)", "—",
+         "77.77 %", "25.00 %", "88.88 %", "50.00 %", "40", "10", "25.00 %"),
+    ]:  # fmt: skip
+        assert re.search(_cells(*row), head), row
+    # the benchmark: test and validation (validation never slips: undefined, with the reason)
+    bench = _section(html, "baseline-benchmark", "metrics")
+    assert re.search(_cells("test", "CNN", "*", "62.00 ± 1.41 %", "*", "72.00 ± 1.41 %", "40",
+                            "10", "25.00 %"), bench)  # fmt: skip
+    assert re.search(_cells("validation", "GRU", "*",
+                            "undefined: no still-now validation window becomes unstable"), bench)
+    sweep = _section(html, "sweep", "latency")
+    assert re.search(_cells("10", "LSTM", "*", "34.3 ± 0.0 %", "*", "60.0 ± 0.0 %", "20", "5",
+                            "25.0 %"), sweep)  # fmt: skip
+    assert re.search(_cells("20", "LSTM", "*", "35.3 ± 0.0 %"), sweep)
+    proxy = html[html.index('id="proxy"') : html.index('id="proxy-figure"')]
+    assert re.search(_cells("friction-ratio proxy", "55.00 %", "44.44 %", "60.00 %", "55.55 %",
+                            "40", "10", "25.00 %"), proxy)  # fmt: skip
+    assert re.search(_cells("CNN (mean ± std over seeds)", "*", "62.00 ± 1.41 %"), proxy)
+    assert re.search(_cells("GRU (mean ± std over seeds)", "*", never), proxy)
+    assert re.search(_cells("persistence oracle (reads object motion)", "77.77 %", "25.00 %",
+                            "88.88 %", "50.00 %"), proxy)  # fmt: skip
+    for part in (head, bench, sweep, proxy):  # never a 0 for an undefined still-now metric
+        assert not re.search(r"<td>0(\.0+)? ?%</td><td>0(\.0+)? ?%</td>", part)
+
+
+def _without_still_now(kwargs: dict[str, Any]) -> None:
+    """Rewrite the studies' artefacts as the code before the still-now metrics wrote them."""
+    a = kwargs["learning"]
+    for path in (a.baseline_summary_defined, a.baseline_summary, a.sweep_summary_defined,
+                 a.baseline_runs, a.sweep_runs):  # fmt: skip
+        frame = pl.read_parquet(path)
+        write_parquet(path, frame.select(c for c in frame.columns
+                                         if not c.startswith(("still_", "moving_"))))
+    proxy = read_json(a.proxy)
+    write_json(a.proxy, {k: v for k, v in proxy.items() if k not in PROXY_STILL})
+
+
+def test_synthetic_report_from_artefacts_before_the_still_now_metrics(
+    tmp_path: Path, snakemake_graphs: dict[str, Path], synthetic_report: Path
+) -> None:
+    """Artefacts without the still-now columns and keys: the report renders without the still-now
+    parts, and the all-windows tables are exactly those of the report with them."""
+    kwargs = _synthetic_results(tmp_path, snakemake_graphs)
+    _without_still_now(kwargs)
+    write_report(out_html=tmp_path / "report.html", **kwargs)
+    old, new = (tmp_path / "report.html").read_text(), synthetic_report.read_text()
+    assert "still now" not in old and "still-now" not in old
+    assert "still now" in new
+    for anchor in ("headline", "baseline-benchmark", "sweep", "proxy"):
+        first = [h[h.index(f'id="{anchor}"') :] for h in (old, new)]
+        first = [h[: h.index("</table>")] for h in first]
+        assert first[0] == first[1], anchor
 
 
 def test_synthetic_report_under_the_alternative_protocol_options(

@@ -10,6 +10,7 @@ wildcard_constraints:
 rule label_input_set:
     input:
         index=rules.label_windows.output.index,
+        motion=rules.label_windows.output.motion,
         traces=replay_outputs("traces"),
     output:
         **{Path(n).stem: f"results/datasets/inputs/{{inputs}}/{n}" for n in DATASET_FILES},

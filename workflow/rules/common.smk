@@ -234,12 +234,15 @@ RUN_FILES = {"metrics": "metrics.json", "predictions": "predictions.parquet",
 
 
 def dataset_inputs(directory):
-    """Every file of a window dataset that training reads (graspstab.learning.data), as named
-    inputs: the index, the memory-mapped windows and the training-split statistics."""
+    """Every file of a window dataset that training and its test read (graspstab.learning.data,
+    graspstab.evaluation.tested_run), as named inputs: the index, the memory-mapped windows, the
+    training-split statistics and the observation periods' motion (for the still-now split; it
+    changes only with the labelling, as the windows do)."""
     return {
         "index": f"{directory}/index.parquet",
         "windows": f"{directory}/windows.npy",
         "normalisation": f"{directory}/normalisation.json",
+        "motion": f"{directory}/motion.npy",
     }
 
 

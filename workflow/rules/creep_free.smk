@@ -149,6 +149,7 @@ use rule evaluate_proxy as evaluate_proxy_creep_free with:
         index=rules.label_windows_creep_free.output.index,
         windows=rules.label_windows_creep_free.output.windows,
         normalisation=rules.label_windows_creep_free.output.normalisation,
+        motion=rules.label_windows_creep_free.output.motion,
     output:
         f"{CF}/studies/proxy.json",
     log:

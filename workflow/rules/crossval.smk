@@ -108,6 +108,8 @@ rule aggregate_crossval:
         pooled="results/studies/crossval/pooled.parquet",
         folds="results/studies/crossval/folds.parquet",
         paired="results/studies/crossval/paired.parquet",
+        pooled_still="results/studies/crossval/pooled_still.parquet",
+        per_object_still="results/studies/crossval/per_object_still.parquet",
         summary="results/studies/crossval/summary.json",
     params:
         run_keys=crossval_keys(),

@@ -1,7 +1,9 @@
 # Window datasets (thesis 3.3, 3.5.4): the baseline task's dataset, the sweep's reference dataset at
 # the longest window and one trimmed dataset per sweep window (same end, label, split, count).
 
-DATASET_FILES = ["index.parquet", "windows.npy", "normalisation.json", "summary.json"]
+DATASET_FILES = [
+    "index.parquet", "windows.npy", "normalisation.json", "summary.json", "motion.npy"
+]
 
 
 rule label_windows:

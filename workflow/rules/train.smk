@@ -210,6 +210,7 @@ rule evaluate_proxy:
         index=rules.label_windows.output.index,
         windows=rules.label_windows.output.windows,
         normalisation=rules.label_windows.output.normalisation,
+        motion=rules.label_windows.output.motion,
     output:
         "results/studies/proxy.json",
     threads: 1

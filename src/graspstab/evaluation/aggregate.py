@@ -18,14 +18,20 @@ import polars as pl
 METRICS = (
     "loss", "accuracy", "precision", "recall", "f1", "auroc", "auprc",
     "tp", "fp", "tn", "fn", "false_positive_rate", "miss_rate", "threshold",
+    "still_auroc", "still_auprc", "still_chance", "still_n", "still_n_unstable",
+    "moving_auroc", "moving_auprc", "moving_chance", "moving_n", "moving_n_unstable",
 )  # fmt: skip
+#: The ranking metrics of a run's still-now and moving-now windows (evaluation.detection), each
+#: with its window count and positives: the columns ``still_<key>`` and ``moving_<key>``.
+MOTION_KEYS = ("n", "n_unstable", "chance", "auprc", "auroc")
 
 
 def run_rows(
     records: Iterable[Mapping[str, Any]], keys: Sequence[Mapping[str, Any]]
 ) -> pl.DataFrame:
     """One row per (run, split in val/test): the run's ``keys`` (e.g. window, assignment), its
-    family, seed, best epoch, threshold rule and every metric of ``METRICS``."""
+    family, seed, best epoch, threshold rule, every metric of ``METRICS`` and the still-now and
+    moving-now blocks (``MOTION_KEYS``; NaN for a record written without them)."""
     rows = []
     for record, key in zip(records, keys, strict=True):
         for split in ("val", "test"):
@@ -34,8 +40,11 @@ def run_rows(
                    "split": split, "best_epoch": int(record["best_epoch"]),
                    "threshold_rule": record["threshold"]["rule"], "n": int(m["n"]),
                    "n_unstable": int(m["n_unstable"])}  # fmt: skip
-            row.update({k: _float(m[k]) for k in METRICS if k != "threshold"})
+            row.update({k: _float(m[k]) for k in METRICS if k in m and k != "threshold"})
             row["threshold"] = float(record["threshold"]["threshold"])
+            for part in ("still", "moving"):
+                block = record.get(f"{split}_{part}", {})
+                row.update({f"{part}_{k}": _float(block.get(k)) for k in MOTION_KEYS})
             rows.append(row)
     return pl.DataFrame(rows, infer_schema_length=None)
 
@@ -183,21 +192,11 @@ def best_windows(table: pl.DataFrame) -> pl.DataFrame:
     )
 
 
-def split_summary(frame: pl.DataFrame, hardest: int = 5) -> dict[str, Any]:
-    """Split robustness (4.4): test AUPRC per assignment (mean over seeds), then its mean, std,
-    median and minimum across assignments, the fixed split's value and the hardest pairings.
-
-    ``frame``: rows of split "test" with assignment (int, 0 = fixed split), val_objects,
-    test_objects, seed, auprc."""
-    per = (
-        frame.group_by(["assignment", "val_objects", "test_objects"], maintain_order=True)
-        .agg(pl.col("auprc").fill_nan(None).mean().alias("auprc"),
-             pl.col("auprc").fill_nan(None).std(ddof=1).alias("auprc_std"),
-             pl.col("seed").n_unique().alias("seeds"))
-        .sort("assignment")
-    )  # fmt: skip
-    values = per["auprc"].drop_nulls().to_numpy()
-    fixed = per.filter(pl.col("assignment") == 0)["auprc"]
+def _spread(per: pl.DataFrame, column: str) -> dict[str, Any]:
+    """Mean, std, median and minimum of a per-assignment column across assignments, and the
+    fixed split's (assignment 0) value; undefined (NaN) where no assignment defines it."""
+    values = per[column].drop_nulls().to_numpy()
+    fixed = per.filter(pl.col("assignment") == 0)[column]
     return {
         "assignments": int(len(per)),
         "defined": int(len(values)),
@@ -206,6 +205,36 @@ def split_summary(frame: pl.DataFrame, hardest: int = 5) -> dict[str, Any]:
         "median": float(np.median(values)) if len(values) else float("nan"),
         "min": float(np.min(values)) if len(values) else float("nan"),
         "fixed_split": float(fixed[0]) if len(fixed) and fixed[0] is not None else float("nan"),
+    }
+
+
+def split_summary(frame: pl.DataFrame, hardest: int = 5) -> dict[str, Any]:
+    """Split robustness (4.4): test AUPRC per assignment (mean over seeds), then its mean, std,
+    median and minimum across assignments, the fixed split's value and the hardest pairings;
+    with the runs' still-now columns, the same of the still-now test AUPRC (``still``) and each
+    assignment's still-now windows, positives and chance.
+
+    ``frame``: rows of split "test" with assignment (int, 0 = fixed split), val_objects,
+    test_objects, seed, auprc (and still_auprc, still_n, still_n_unstable, still_chance)."""
+    still = "still_auprc" in frame.columns
+    aggs = [pl.col("auprc").fill_nan(None).mean().alias("auprc"),
+            pl.col("auprc").fill_nan(None).std(ddof=1).alias("auprc_std"),
+            pl.col("seed").n_unique().alias("seeds")]  # fmt: skip
+    if still:
+        aggs += [pl.col("still_auprc").fill_nan(None).mean().alias("still_auprc"),
+                 pl.col("still_auprc").fill_nan(None).std(ddof=1).alias("still_auprc_std"),
+                 *(pl.col(f"still_{k}").first().alias(f"still_{k}")
+                   for k in ("n", "n_unstable", "chance"))]  # fmt: skip
+    per = (
+        frame.group_by(["assignment", "val_objects", "test_objects"], maintain_order=True)
+        .agg(*aggs)
+        .sort("assignment")
+    )
+    out = {
+        **_spread(per, "auprc"),
         "hardest": per.drop_nulls("auprc").sort("auprc").head(hardest).to_dicts(),
         "per_assignment": per.to_dicts(),
     }
+    if still:
+        out["still"] = _spread(per, "still_auprc")
+    return out

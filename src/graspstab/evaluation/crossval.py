@@ -298,10 +298,22 @@ def threshold_table(runs: Sequence[Mapping[str, Any]]) -> pl.DataFrame:
     return pl.DataFrame(rows)
 
 
-def answer(paired: pl.DataFrame, protocol: str, scorers: Sequence[str], level: float) -> str:
+def answer(
+    paired: pl.DataFrame, protocol: str, scorers: Sequence[str], level: float, still: bool = False
+) -> str:
     """The one-sentence answer for a protocol: do the learned models beat the proxy on unseen
-    objects (test AUPRC, paired bootstrap over objects)?"""
+    objects (test AUPRC, paired bootstrap over objects)? ``still``: on the still-now windows
+    only (``paired`` from their per-object table): early warning, not recognition."""
     rows = paired.filter((pl.col("metric") == "auprc") & pl.col("scorer").is_in(list(scorers)))
+    where = "on the still-now test windows of unseen objects" if still else "on unseen objects"
+    metric = "still-now test AUPRC" if still else "test AUPRC"
+    if not rows.is_empty():
+        rows = rows.filter(pl.col("objects") > 0)
+        if rows.is_empty():
+            return (
+                f"Under the {protocol} protocol no object has a defined {metric} for both a "
+                "learned model and the proxy (a class is missing), so no comparison is made."
+            )
     if rows.is_empty():
         return f"Under the {protocol} protocol no learned model was compared with the proxy."
     parts = [
@@ -324,7 +336,7 @@ def answer(paired: pl.DataFrame, protocol: str, scorers: Sequence[str], level: f
     else:
         head = "no learned model is distinguishable from the proxy"
     return (
-        f"Under the {protocol} protocol, on unseen objects {head} (test AUPRC, learned minus "
+        f"Under the {protocol} protocol, {where} {head} ({metric}, learned minus "
         f"proxy, mean over objects, {round(100 * level)} % paired-bootstrap interval: "
         + "; ".join(parts)
         + ")."

@@ -21,8 +21,10 @@ import torch
 
 from graspstab.common.io import write_json, write_parquet
 from graspstab.common.logs import setup_logging
+from graspstab.evaluation.detection import ranked, still_now
 from graspstab.evaluation.proxy import friction_ratio, proxy_metrics
 from graspstab.evaluation.studies import load_checkpoint
+from graspstab.labels.dataset import load_motion
 from graspstab.labels.trace_windows import trace_map
 from graspstab.learning.data import load_window_data
 from graspstab.learning.train import sigmoid
@@ -66,6 +68,7 @@ def evaluate_robustness(
     rows = data.rows(split)
     index = data.index[rows]
     labels = data.labels(rows)
+    still = still_now(np.asarray(load_motion(dataset_dir)[rows]))  # prediction, not detection
     w = data.window_steps
     conds = conditions(sensing)
     context = max(c["sensor"].context_frames(dt) for c in conds)
@@ -77,23 +80,35 @@ def evaluate_robustness(
     for i, (cond, stream) in enumerate(zip(conds, streams, strict=True)):
         sensed = sense(cond["sensor"], segments, w, data.std, dt, np.random.default_rng(stream))
         label = {k: cond[k] for k in ("kind", "corruption", "strength")}
-        proxy = proxy_metrics(friction_ratio(sensed), labels)
+        ratio = friction_ratio(sensed)
+        proxy = proxy_metrics(ratio, labels)
         out.append({**label, "scorer": "proxy", "family": "proxy", "seed": -1,
-                    "training": "none", **proxy})  # fmt: skip
+                    "training": "none", **proxy, **_still(ratio, labels, still)})  # fmt: skip
         for key, model, ckpt in models:
             logits = _logits(model, sensed, np.asarray(ckpt["mean"]), np.asarray(ckpt["std"]))
             m = binary_metrics(sigmoid(logits), labels, 0.5, logits=logits)
             out.append({**label, "scorer": f"{key['family']}_seed{key['seed']}",
                         "family": str(key["family"]), "seed": int(key["seed"]),
                         "training": str(key.get("training", "clean")),
-                        "auprc": float(m["auprc"]), "auroc": float(m["auroc"])})  # fmt: skip
+                        "auprc": float(m["auprc"]), "auroc": float(m["auroc"]),
+                        **_still(sigmoid(logits), labels, still)})  # fmt: skip
         log.info("[%d/%d] %s %s %s: proxy AUPRC %.4f (%.0f s)", i + 1, len(conds), cond["kind"],
                  cond["corruption"], cond["strength"], proxy["auprc"],
                  time.perf_counter() - start)  # fmt: skip
     table = pl.DataFrame(out, infer_schema_length=None)
     write_parquet(out_table, table)
-    write_json(out_json, summarise(table, n=len(rows), n_unstable=int(labels.sum())))
+    summary = summarise(table, n=len(rows), n_unstable=int(labels.sum()))
+    n_still, pos_still = int(still.sum()), int(labels[still].sum())
+    summary["still"] = {"n": n_still, "n_unstable": pos_still,
+                        "chance": pos_still / n_still if n_still else float("nan")}  # fmt: skip
+    write_json(out_json, summary)
     return table
+
+
+def _still(scores: np.ndarray, labels: np.ndarray, still: np.ndarray) -> dict[str, float]:
+    """AUPRC and AUROC on the still-now windows (``still_auprc``, ``still_auroc``)."""
+    block = ranked(scores[still], labels[still])
+    return {"still_auprc": float(block["auprc"]), "still_auroc": float(block["auroc"])}
 
 
 def summarise(table: pl.DataFrame, n: int, n_unstable: int) -> dict[str, Any]:
@@ -104,6 +119,7 @@ def summarise(table: pl.DataFrame, n: int, n_unstable: int) -> dict[str, Any]:
         ).agg(
             pl.col("auprc").mean().alias("auprc_mean"),
             pl.col("auprc").std(ddof=0).alias("auprc_std"),
+            pl.col("still_auprc").fill_nan(None).mean().alias("still_auprc_mean"),
             pl.len().alias("runs"),
         )  # fmt: skip
     )

@@ -17,8 +17,16 @@ from graspstab.common.io import read_json, read_parquet, write_json, write_parqu
 from graspstab.common.logs import setup_logging
 from graspstab.evaluation import aggregate
 from graspstab.evaluation import crossval as cv
+from graspstab.evaluation.detection import (
+    ORACLE,
+    motion_blocks,
+    ranked,
+    still_now,
+    unstable_share,
+)
 from graspstab.evaluation.latency import measure_latency
 from graspstab.evaluation.proxy import friction_ratio, proxy_metrics
+from graspstab.labels.dataset import load_motion
 from graspstab.learning.data import load_window_data
 from graspstab.learning.models import build_model
 
@@ -170,10 +178,15 @@ def aggregate_splits(
 def evaluate_proxy(
     dataset_dir: str | Path, out_json: str | Path, log_file: str | Path | None = None
 ) -> dict[str, Any]:
-    """Friction-ratio proxy (4.7) on the raw (un-normalised) windows of validation and test."""
+    """Friction-ratio proxy (4.7) on the raw (un-normalised) windows of validation and test, on
+    all windows and on the still-now and moving-now ones (``evaluation.detection``), and beside it
+    the persistence oracle (``persistence``: the observation period's unstable share, a reference
+    line that reads object motion)."""
     setup_logging(log_file)
     data = load_window_data(dataset_dir)
+    motion = load_motion(dataset_dir)
     result: dict[str, Any] = {}
+    oracle: dict[str, Any] = {}
     for split in ("val", "test"):
         rows = data.rows(split)
         scores = friction_ratio(data.windows[rows]) if len(rows) else np.zeros(0)
@@ -185,9 +198,19 @@ def evaluate_proxy(
             for obj in sorted(set(data.objects(rows)))
             for mask in [data.objects(rows) == obj]
         }
+        observed = np.asarray(motion[rows])
+        still = still_now(observed)
+        result.update(motion_blocks(scores, labels, still, split))
+        share = unstable_share(observed)
+        oracle[split] = ranked(share, labels)
+        oracle.update(motion_blocks(share, labels, still, split))
+    result[ORACLE] = oracle
     write_json(out_json, result)
-    log.info("friction-ratio proxy: val AUPRC %.4f, test AUPRC %.4f",
-             result["val"]["auprc"], result["test"]["auprc"])  # fmt: skip
+    log.info("friction-ratio proxy: val AUPRC %.4f, test AUPRC %.4f; on the %d still-now test "
+             "windows (%d unstable) %.4f; persistence oracle test AUPRC %.4f",
+             result["val"]["auprc"], result["test"]["auprc"], result["test_still"]["n"],
+             result["test_still"]["n_unstable"], result["test_still"]["auprc"],
+             oracle["test"]["auprc"])  # fmt: skip
     return result
 
 
@@ -219,6 +242,13 @@ def aggregate_inputs(
     log.info("input audit:\n%s", summary.filter(pl.col("split") == "test").select(
         "input_set", "family", "auprc_mean", "auprc_std"))  # fmt: skip
     return result
+
+
+def _with_chance(table: pl.DataFrame) -> pl.DataFrame:
+    """A pooled table with the chance level of AUPRC (the unstable share of its windows)."""
+    if table.is_empty():
+        return table
+    return table.with_columns((pl.col("unstable") / pl.col("windows")).alias("chance"))
 
 
 def aggregate_crossval(
@@ -255,6 +285,23 @@ def aggregate_crossval(
     pooled = cv.pooled_table(scored, **b)
     folds = cv.fold_table(scored)
     paired = cv.paired_table(per_object, **b)
+    # prediction, not detection (evaluation.detection): the same on the still-now windows, with
+    # the persistence oracle beside the scorers (it reads object motion: a reference line)
+    motion = load_motion(root)
+    state = pl.DataFrame({"sample_id": index["sample_id"], "still": still_now(motion),
+                          "oracle": unstable_share(motion)})  # fmt: skip
+    oracle = (
+        scored.filter(pl.col("scorer") == cv.PROXY)
+        .join(state, on="sample_id")
+        .with_columns(pl.lit(ORACLE).alias("scorer"), pl.col("oracle").alias("score"))
+        .select(scored.columns)
+    )
+    still_ids = state.filter(pl.col("still")).select("sample_id")
+    still = pl.concat([scored, oracle]).join(still_ids, on="sample_id")
+    pooled_still = _with_chance(cv.pooled_table(still, **b))
+    pooled_oracle = _with_chance(cv.pooled_table(oracle, **b))
+    per_object_still = cv.per_object_table(still.filter(pl.col("scorer") != ORACLE), **b)
+    paired_still = cv.paired_table(per_object_still, **b)
     variants = cv.variant_table(per_object, **b)
     learned = sorted(set(scored["scorer"].to_list()) - {cv.PROXY})
     plain = [s for s in learned if "+" not in s]
@@ -268,6 +315,9 @@ def aggregate_crossval(
         "scorers": learned + [cv.PROXY],
         "bootstrap": b,
         "pooled": {r["scorer"]: r for r in pooled.iter_rows(named=True)},
+        "pooled_still": {r["scorer"]: r for r in pooled_still.iter_rows(named=True)},
+        "oracle": pooled_oracle.row(0, named=True) if pooled_oracle.height else None,
+        "paired_still": paired_still.to_dicts(),
         "fold_mean": {
             s: {m: float(np.nanmean(g[m].to_numpy())) for m in cv.METRICS}
             | {f"{m}_std": float(np.nanstd(g[m].to_numpy(), ddof=1)) for m in cv.METRICS}
@@ -278,11 +328,15 @@ def aggregate_crossval(
         "thresholds": cv.threshold_table(runs).to_dicts(),
         "answer": cv.answer(paired, protocol.replace("_", "-"), plain, b["level"]),
         "answer_variants": cv.answer(paired, protocol.replace("_", "-"), learned, b["level"]),
+        "answer_still": cv.answer(paired_still, protocol.replace("_", "-"), plain, b["level"],
+                                  still=True),
     }
     write_parquet(out / "per_object.parquet", per_object)
     write_parquet(out / "pooled.parquet", pooled)
     write_parquet(out / "folds.parquet", folds)
     write_parquet(out / "paired.parquet", paired)
+    write_parquet(out / "pooled_still.parquet", pooled_still)
+    write_parquet(out / "per_object_still.parquet", per_object_still)
     write_json(out / "summary.json", summary)
     log.info("%s", summary["answer"])
     return summary

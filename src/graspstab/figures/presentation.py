@@ -65,6 +65,34 @@ METRIC_LABELS = {
 }
 
 
+#: Prediction, not detection (``graspstab.evaluation.detection``): every ranking metric is also
+#: given on the windows whose object is still over the whole observation period (``still``: the
+#: columns ``still_<metric>`` of the studies' tables, the keys ``<split>_still`` of the records)
+#: and on those where it already moves (``moving``).
+MOTION_PARTS = ("still", "moving")
+MOTION_NAMES = {"all": "all windows", "still": "still now", "moving": "moving now"}
+#: The persistence oracle's name in the records (evaluation.detection.ORACLE; a test keeps them
+#: equal): it reads object motion, a reference line, never a monitor.
+ORACLE = "persistence"
+ORACLE_LABEL = "persistence oracle"
+
+
+def motion_reason(n: Any, n_unstable: Any, split: str = "test", part: str = "still") -> str:
+    """Why a ranking metric of a split's still-now (``part`` "still") or moving-now windows is
+    undefined, from their count and positives: none recorded (an artefact written before these
+    metrics), no such window, no unstable one, no stable one."""
+    name, kind = SPLIT_NAMES.get(split, split), f"{part}-now"
+    if not finite(n):
+        return f"no {kind} metrics recorded (an artefact written before them)"
+    if float(n) == 0:
+        return f"the {name} split holds no {kind} window"
+    if finite(n_unstable) and float(n_unstable) == 0:
+        return f"no {kind} {name} window becomes unstable"
+    if finite(n_unstable) and float(n_unstable) == float(n):
+        return f"every {kind} {name} window becomes unstable"
+    return "no seed gave a defined value"
+
+
 def finite(value: Any) -> bool:
     """True for a real, finite number: None (strict JSON's undefined) and NaN are not."""
     try:

@@ -15,7 +15,7 @@ import polars as pl
 
 from graspstab.common.io import read_parquet, save_npy, write_json, write_parquet
 from graspstab.common.logs import setup_logging
-from graspstab.labels.dataset import load_windows, normalisation
+from graspstab.labels.dataset import load_motion, load_windows, normalisation
 from graspstab.labels.label_windows import label_windows
 from graspstab.labels.trim import trim_same_end
 from graspstab.labels.windows import step_counts
@@ -68,6 +68,8 @@ def trim_dataset(
     steps = step_counts(window_s, 0.0, 0.0, dt)[0]
     trimmed, windows = trim_same_end(index, load_windows(ref), steps)
     save_npy(out / "windows.npy", np.ascontiguousarray(windows, dtype=np.float32))
+    _, motion = trim_same_end(index, load_motion(ref), steps)  # the same tail of each window
+    save_npy(out / "motion.npy", np.ascontiguousarray(motion))
     write_json(out / "normalisation.json", normalisation(windows, trimmed))
     write_parquet(out / "index.parquet", trimmed, metadata={
         "window_steps": steps, "dt": dt, "window_s": window_s, "trimmed_from": str(ref),

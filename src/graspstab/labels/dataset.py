@@ -32,6 +32,18 @@ def normalisation(windows: np.ndarray, index: pl.DataFrame, eps: float = 1e-6) -
     }  # fmt: skip
 
 
+#: What ``motion.npy`` holds beside the windows (N, W, 2), step by step over each window's
+#: observation period: eq. 23's step label u_t and the object's centre-of-mass speed [m/s]. No
+#: fingertip sensor sees either, so no model reads them: evaluation does, to tell a window whose
+#: object already moves (recognising the present) from one whose object is still (foresight).
+MOTION = ("unstable", "speed")
+
+
+def load_motion(out_dir: str | Path) -> np.ndarray:
+    """The dataset's observation-period motion (``MOTION``) as a read-only memory map (N, W, 2)."""
+    return load_npy(os.fspath(Path(out_dir) / "motion.npy"), mmap_mode="r")
+
+
 def load_windows(out_dir: str | Path) -> np.ndarray:
     """The dataset's windows as a read-only memory map (N, W, 5, 2)."""
     return load_npy(os.fspath(Path(out_dir) / "windows.npy"), mmap_mode="r")

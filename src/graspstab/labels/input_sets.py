@@ -36,6 +36,7 @@ from graspstab.common.io import (
     write_parquet,
 )
 from graspstab.labels.build_datasets import dataset_summary
+from graspstab.labels.dataset import load_motion
 from graspstab.labels.trace_windows import grasps_of
 
 FINGERTIPS = 5
@@ -104,6 +105,7 @@ def build_input_dataset(
         np.maximum(train.astype(np.float64).std(axis=0), eps) if len(train) else np.ones_like(mean)
     )
     save_npy(out / "windows.npy", np.ascontiguousarray(windows))
+    save_npy(out / "motion.npy", np.ascontiguousarray(load_motion(src)))  # the same windows
     write_json(out / "normalisation.json", {
         "mean": mean.tolist(), "std": std.tolist(), "eps": eps, "axes": "1 x feature",
         "channels": features(input_set), "train_windows": int((index["split"] == "train").sum()),

@@ -8,6 +8,9 @@ W x 5 fingertips x {normal, shear}). Writes into ``out_dir``:
 * ``index.parquet``: sample_id, object, grasp_id, shard, start, end (exclusive, s + W), r, label,
   split (the object's split: every window of a grasp shares it);
 * ``windows.npy``: float32 (N, W, 5, 2), for training to memory-map;
+* ``motion.npy``: float32 (N, W, 2), the object's motion over each observation period (eq. 23's
+  u_t and the speed [m/s], ``labels.dataset.MOTION``), which no model reads: evaluation splits
+  windows whose object already moves from still ones with it;
 * ``normalisation.json``: per fingertip x channel mean and std over the training windows' time
   steps only, the std floored at ``eps`` (3.5.2).
 """
@@ -22,7 +25,7 @@ import numpy as np
 import polars as pl
 
 from graspstab.common.io import save_npy, write_json, write_parquet
-from graspstab.labels.dataset import CHANNELS, normalisation
+from graspstab.labels.dataset import CHANNELS, MOTION, normalisation
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.replays import replay_grasps
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
@@ -73,6 +76,7 @@ def label_windows(
     w = step_counts(window_s, labels["offset_s"], labels["horizon_s"], dt)[0]
     rows: list[dict[str, Any]] = []
     chunks: list[np.ndarray] = []
+    motion: list[np.ndarray] = []
     for g in replay_grasps(replays, splits, ("velocity", "min_distance", *CHANNELS)):
         tr = g.traces
         starts, r, y, _ = grasp_windows(tr, g.object, g.grasp_id, labels, window_s, dt, seed)
@@ -81,6 +85,9 @@ def label_windows(
         feats = np.stack([tr[c] for c in CHANNELS], axis=-1)  # (T, 5, 2)
         idx = starts[:, None] + np.arange(w)[None]
         chunks.append(feats[idx].astype(np.float32))
+        speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
+        u = timestep_labels(speed, labels["v_slip"])
+        motion.append(np.stack([u[idx], speed[idx]], axis=-1).astype(np.float32))
         for s, rs, ys in zip(starts, r, y, strict=True):
             rows.append({"object": g.object, "grasp_id": g.grasp_id, "shard": g.shard,
                          "start": int(s), "end": int(s) + w, "r": float(rs),
@@ -92,6 +99,8 @@ def label_windows(
     ).with_row_index("sample_id")  # fmt: skip
     windows = np.concatenate(chunks) if chunks else np.zeros((0, w, 5, 2), np.float32)
     save_npy(out / "windows.npy", np.ascontiguousarray(windows, dtype=np.float32))
+    moved = np.concatenate(motion) if motion else np.zeros((0, w, len(MOTION)), np.float32)
+    save_npy(out / "motion.npy", np.ascontiguousarray(moved))
     write_json(out / "normalisation.json", normalisation(windows, index, eps))
     write_parquet(out / "index.parquet", index, metadata={"window_steps": w, "dt": dt,
                                                           "window_s": window_s})  # fmt: skip

@@ -15,7 +15,8 @@ def trim_same_end(
     index: pl.DataFrame, windows: np.ndarray, window_steps: int
 ) -> tuple[pl.DataFrame, np.ndarray]:
     """The dataset of ``window_steps`` frames trimmed from the reference (``windows (N, W_ref,
-    5, 2)``); ``index`` rows keep their ids, ends, labels and splits, starts move forward."""
+    ...)``: the windows, or their motion); ``index`` rows keep their ids, ends, labels and
+    splits, starts move forward."""
     w_ref = windows.shape[1]
     if not 1 <= window_steps <= w_ref:
         raise ValueError(f"a trimmed window needs 1 <= W <= {w_ref} frames, got {window_steps}")

@@ -15,9 +15,28 @@ import polars as pl
 
 from graspstab.common.io import read_json, read_parquet
 from graspstab.figures.artefacts import StudyArtefacts
-from graspstab.figures.presentation import UNDEFINED, family_label, finite
+from graspstab.figures.presentation import (
+    ORACLE,
+    ORACLE_LABEL,
+    UNDEFINED,
+    family_label,
+    finite,
+    motion_reason,
+)
 from graspstab.report import html as H
-from graspstab.report.headline import Figure, baseline_figure, proxy_figure, sweep_figure
+from graspstab.report import still_now as S
+from graspstab.report.headline import (
+    Figure,
+    baseline_figure,
+    baseline_motion_row,
+    proxy_figure,
+    proxy_record,
+    record_figure,
+    still_baseline_figure,
+    still_sweep_figure,
+    still_text,
+    sweep_figure,
+)
 
 FAMILIES = ("cnn", "gru", "lstm")
 SPLITS = ("train", "val", "test")
@@ -141,6 +160,43 @@ def judge(
     return rows
 
 
+def _has_still(b: Benchmark) -> bool:
+    """Whether a protocol's studies hold the still-now metrics (an older run's do not)."""
+    record = proxy_record(b.studies)
+    return bool(record.get("test_still") or record.get(ORACLE)) or any(
+        S.has_motion(baseline_motion_row(b.studies, f)) for f in FAMILIES
+    )
+
+
+def still_rows(main: Benchmark, ramp: Benchmark) -> list[list[Any]]:
+    """The side-by-side table's still-now rows: each family's, the proxy's and the persistence
+    oracle's test AUPRC on the still-now windows (the oracle's also on all windows), and the
+    still-now test windows' count, positives and chance level (the proxy's record: every scorer
+    reads the same test windows)."""
+    pair = (main, ramp)
+    records = [proxy_record(b.studies) for b in pair]
+    rows: list[list[Any]] = [
+        [f"{family_label(f)} test AUPRC, still now",
+         *[still_text(still_baseline_figure(b.studies, f, "test", "auprc")) for b in pair]]
+        for f in FAMILIES
+    ]  # fmt: skip
+    rows.append(["friction-ratio proxy test AUPRC, still now",
+                 *[still_text(record_figure(r.get("test_still"), "auprc", "test", "still"))
+                   for r in records]])  # fmt: skip
+    rows.append([f"{ORACLE_LABEL} test AUPRC (reads object motion: a reference line)",
+                 *[record_figure((r.get(ORACLE) or {}).get("test"), "auprc").text()
+                   for r in records]])  # fmt: skip
+    rows.append([f"{ORACLE_LABEL} test AUPRC, still now",
+                 *[still_text(record_figure((r.get(ORACLE) or {}).get("test_still"), "auprc",
+                                            "test", "still")) for r in records]])  # fmt: skip
+    counts = [S.block_counts(r.get("test_still"), digits=1) if r.get("test_still")
+              else None for r in records]  # fmt: skip
+    rows.append(["still-now test windows (unstable; chance AUPRC)",
+                 *[f"{c[0]} ({c[1]}; {c[2]})" if c else S.undefined(motion_reason(None, None))
+                   for c in counts]])  # fmt: skip
+    return rows
+
+
 def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[str, Any]) -> str:
     """The section "Two protocols side by side" (anchor ``protocols``)."""
     names = [main.name, ramp.name]
@@ -175,6 +231,9 @@ def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[st
             baseline_figure(b.studies, f, "test", "auprc").text() for b in (main, ramp)]])
     rows.append(["friction-ratio proxy test AUPRC",
                  *[proxy_figure(b.studies).text() for b in (main, ramp)]])  # fmt: skip
+    still = any(_has_still(b) for b in (main, ramp))
+    if still:
+        rows += still_rows(main, ramp)
     r = ramp_config
     parts = [
         H.heading(2, "protocols", "Two protocols side by side: gravity and the load ramp"),
@@ -196,7 +255,17 @@ def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[st
          *[sweep_figure(b.studies, f, w).text() for b in (main, ramp)]]
         for w in common for f in FAMILIES
     ]  # fmt: skip
-    parts.append(H.table(["window [s]", "family", *names], sweep_rows,
+    if still:
+        for row, (w, f) in zip(sweep_rows, [(w, f) for w in common for f in FAMILIES],
+                               strict=True):
+            row += [still_text(still_sweep_figure(b.studies, f, w)) for b in (main, ramp)]
+        parts.append(
+            f"<p>{S.ALL_WINDOWS_TEXT} {S.STILL_NOW_TEXT} {S.ORACLE_TEXT} The rows 'still now' "
+            "above and the sweep's columns 'still now' (its still-now validation windows) give "
+            "them under each protocol.</p>"
+        )
+    names_still = [f"{n}: still now (validation)" for n in names] if still else []
+    parts.append(H.table(["window [s]", "family", *names, *names_still], sweep_rows,
                          caption="Window sweep: validation AUPRC (4.5) under each protocol"))
     verdicts = [conclusions(b) for b in (main, ramp)]
     parts.append(H.table(

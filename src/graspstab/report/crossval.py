@@ -10,7 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from graspstab.common.io import read_json, read_parquet
+from graspstab.figures.presentation import ORACLE, ORACLE_LABEL, motion_reason
 from graspstab.report import html as H
+from graspstab.report import still_now as S
 
 PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
 VARIANTS = {
@@ -43,6 +45,9 @@ def _protocol_parts(
     name = PROTOCOLS.get(protocol, protocol)
     parts = [H.heading(3, f"crossval-{protocol}", f"Cross-validation: {name}")]
     parts.append(f'<p class="answer"><strong>{H.esc(summary["answer"])}</strong></p>')
+    if "pooled_still" in summary:  # the same question on the still-now windows
+        parts.append(f'<p class="answer"><strong>{H.esc(still_answer(summary, protocol))}'
+                     "</strong></p>")  # fmt: skip
     pooled = summary["pooled"]
     folds = summary["fold_mean"]
     rows = []
@@ -57,6 +62,19 @@ def _protocol_parts(
                 _pct(p["auprc"], p["auprc_lo"], p["auprc_hi"]),
                 _pct(p["auroc"], p["auroc_lo"], p["auroc_hi"]),
                 f"{100 * f.get('auprc', math.nan):.1f} ± {100 * f.get('auprc_std', math.nan):.1f}",
+            ]
+        )
+    oracle = summary.get("oracle")
+    if oracle:  # pooled over all windows; scored once, so no fold mean
+        rows.append(
+            [
+                f"{ORACLE_LABEL} (reads object motion: a reference line)",
+                oracle["windows"],
+                oracle["unstable"],
+                oracle["grasps"],
+                _pct(oracle["auprc"], oracle["auprc_lo"], oracle["auprc_hi"]),
+                _pct(oracle["auroc"], oracle["auroc_lo"], oracle["auroc_hi"]),
+                "—",
             ]
         )
     parts.append(
@@ -74,33 +92,11 @@ def _protocol_parts(
             caption=f"Pooled test metrics, {summary['folds']} folds ({name})",
         )
     )
-    prows = [
-        [
-            r["scorer"],
-            r["metric"].upper(),
-            r["objects"],
-            _pts(r["mean_diff"], r["lo"], r["hi"]),
-            f"{r['wins']} / {r['losses']} / {r['ties']}",
-            "undefined"
-            if r["sign_p"] is None or not math.isfinite(r["sign_p"])
-            else f"{r['sign_p']:.3g}",
-            r["verdict"],
-        ]
-        for r in summary["paired"]
-    ]
     parts.append(
-        H.table(
-            [
-                "learned scorer",
-                "metric",
-                "objects",
-                f"learned - proxy (points) [{level} % CI]",
-                "wins / losses / ties",
-                "sign test p",
-                "verdict",
-            ],
-            prows,
-            caption=f"Paired comparison with the friction-ratio proxy over test objects ({name})",
+        _paired_table(
+            summary["paired"],
+            level,
+            f"Paired comparison with the friction-ratio proxy over test objects ({name})",
         )
     )
     scorers = summary["scorers"]
@@ -160,6 +156,8 @@ def _protocol_parts(
             f"crossval-figure-{protocol}",
         )
     )
+    if "pooled_still" in summary:
+        parts += _still_parts(protocol, summary, files, level, name)
     if "answer_variants" in summary and any("+" in s for s in scorers):
         parts.append(f"<p>With the fairness variants: {H.esc(summary['answer_variants'])}</p>")
     if summary.get("variants"):
@@ -169,19 +167,179 @@ def _protocol_parts(
     return parts
 
 
+def _comparison_cells(r: Mapping[str, Any]) -> list[Any]:
+    """A paired comparison's objects, difference with interval, wins/losses/ties, sign-test p
+    and verdict, as table cells."""
+    p = r["sign_p"]
+    return [
+        r["objects"],
+        _pts(r["mean_diff"], r["lo"], r["hi"]),
+        f"{r['wins']} / {r['losses']} / {r['ties']}",
+        "undefined" if p is None or not math.isfinite(p) else f"{p:.3g}",
+        r["verdict"],
+    ]
+
+
+def _paired_table(rows: Any, level: int, caption: str) -> str:
+    """Learned minus proxy per scorer and metric, paired over test objects."""
+    prows = [
+        [
+            r["scorer"],
+            r["metric"].upper(),
+            *_comparison_cells(r),
+        ]
+        for r in rows
+    ]
+    return H.table(
+        [
+            "learned scorer",
+            "metric",
+            "objects",
+            f"learned - proxy (points) [{level} % CI]",
+            "wins / losses / ties",
+            "sign test p",
+            "verdict",
+        ],
+        prows,
+        caption=caption,
+    )
+
+
+def _still_metric(row: Mapping[str, Any], metric: str) -> str:
+    """A pooled still-now metric with its interval, or 'undefined: <reason>'."""
+    v = row.get(metric)
+    if v is None or not math.isfinite(float(v)):
+        return S.undefined(motion_reason(row.get("windows"), row.get("unstable")))
+    return _pct(v, row.get(f"{metric}_lo"), row.get(f"{metric}_hi"))
+
+
+def still_answer(summary: Mapping[str, Any], protocol: str) -> str:
+    """The one-sentence answer on the still-now windows: the summary's ``answer_still`` when the
+    job wrote one, else put together from its ``paired_still`` rows (test AUPRC, the plain
+    families), as the all-windows ``answer`` is from ``paired``."""
+    if summary.get("answer_still"):
+        return str(summary["answer_still"])
+    level = round(100 * summary["bootstrap"]["level"])
+    name = protocol.replace("_", "-")
+    rows = [r for r in summary.get("paired_still", [])
+            if r["metric"] == "auprc" and "+" not in r["scorer"]]  # fmt: skip
+    if not rows:
+        return (f"Under the {name} protocol no learned model was compared with the proxy on "
+                "still-now windows.")
+    defined = [r for r in rows if r["verdict"] != "undefined"]
+    if not defined:
+        proxy = summary.get("pooled_still", {}).get("proxy", {})
+        why = motion_reason(proxy.get("windows"), proxy.get("unstable"))
+        return (f"Under the {name} protocol the comparison on still-now test windows is "
+                f"undefined: {why} (no object has a defined still-now test AUPRC for both).")
+    verdicts = {r["verdict"] for r in defined}
+    if verdicts == {"learned better"} and len(defined) == len(rows):
+        head = "every learned model beats the friction-ratio proxy"
+    elif verdicts == {"proxy better"} and len(defined) == len(rows):
+        head = "the friction-ratio proxy beats every learned model"
+    elif "learned better" in verdicts:
+        better = [r["scorer"] for r in defined if r["verdict"] == "learned better"]
+        head = f"only {', '.join(better)} beat{'s' if len(better) == 1 else ''} the proxy"
+    elif "proxy better" in verdicts:
+        head = "no learned model beats the proxy, and some do worse"
+    else:
+        head = "no learned model is distinguishable from the proxy"
+    parts = [
+        f"{r['scorer']} {100 * r['mean_diff']:+.1f} points [{100 * r['lo']:+.1f}, "
+        f"{100 * r['hi']:+.1f}] over {r['objects']} objects" if r["verdict"] != "undefined"
+        else f"{r['scorer']} undefined (no object has a defined still-now AUPRC for both)"
+        for r in rows
+    ]  # fmt: skip
+    return (
+        f"Under the {name} protocol, on the still-now test windows of unseen objects (early "
+        f"warning proper) {head} (test AUPRC, learned minus proxy, mean over objects, {level} % "
+        "paired-bootstrap interval: " + "; ".join(parts) + ")."
+    )
+
+
+def _still_parts(
+    protocol: str, summary: Mapping[str, Any], files: Mapping[str, Any], level: int, name: str
+) -> list[str]:
+    """The still-now part of a protocol: the answer on still-now windows, the pooled still-now
+    table with the persistence oracle, the paired comparison and (when given) the per-object
+    still-now AUPRC."""
+    pooled = summary["pooled_still"]
+    order = [s for s in summary["scorers"] if s in pooled]
+    order += [s for s in pooled if s not in order and s != ORACLE]
+    order += [ORACLE] if ORACLE in pooled else []
+    rows = [
+        [
+            f"{ORACLE_LABEL} (reads object motion: a reference line)" if s == ORACLE else s,
+            pooled[s].get("windows"),
+            pooled[s].get("unstable"),
+            pooled[s].get("grasps"),
+            S.percent(pooled[s].get("chance"), sign=False, digits=1)
+            or S.undefined(motion_reason(pooled[s].get("windows"), None)),
+            _still_metric(pooled[s], "auprc"),
+            _still_metric(pooled[s], "auroc"),
+        ]
+        for s in order
+    ]
+    parts = [
+        f'<h4 id="crossval-still-{H.esc(protocol)}">Still now: early warning proper ({name})</h4>',
+        f"<p>{S.ALL_WINDOWS_TEXT} {S.STILL_NOW_TEXT} {S.ORACLE_TEXT} The second answer above "
+        "is this comparison's.</p>",
+        H.table(
+            [
+                "scorer",
+                "still-now test windows",
+                "unstable",
+                "grasps",
+                "chance AUPRC (%)",
+                f"pooled AUPRC (%) [{level} % CI]",
+                f"pooled AUROC (%) [{level} % CI]",
+            ],
+            rows,
+            caption=f"Pooled test metrics on the still-now windows, {summary['folds']} folds "
+            f"({name})",
+        ),
+    ]
+    if summary.get("paired_still"):
+        parts.append(
+            _paired_table(
+                summary["paired_still"],
+                level,
+                "Paired comparison with the friction-ratio proxy over test objects, on the "
+                f"still-now windows ({name})",
+            )
+        )
+    if files.get("per_object_still") is not None:
+        parts.append(_per_object_still(read_parquet(Path(files["per_object_still"])), level,
+                                       name))  # fmt: skip
+    return parts
+
+
+def _per_object_still(per_object: Any, level: int, name: str) -> str:
+    """Per-object test AUPRC on the still-now windows (per_object_still.parquet)."""
+    scorers = sorted(set(per_object["scorer"].to_list()))
+    by = {(r["scorer"], r["object"]): r for r in per_object.iter_rows(named=True)}
+    objects = sorted(set(per_object["object"].to_list()))
+    rows = []
+    for o in objects:
+        first = next(by[(s, o)] for s in scorers if (s, o) in by)
+        rows.append([o, first["windows"], first["unstable"],
+                     *[_still_metric(by[(s, o)], "auprc") if (s, o) in by else "—"
+                       for s in scorers]])  # fmt: skip
+    return H.table(
+        ["object", "still-now windows", "unstable", *[f"{s} AUPRC (%)" for s in scorers]],
+        rows,
+        caption=f"Per-object test AUPRC on the still-now windows with {level} % grasp-bootstrap "
+        f"intervals ({name})",
+    )
+
+
 def _variant_table(summary: Mapping[str, Any], level: int, name: str) -> str:
     rows = [
         [
             r["scorer"],
             r["against"],
             r["metric"].upper(),
-            r["objects"],
-            _pts(r["mean_diff"], r["lo"], r["hi"]),
-            f"{r['wins']} / {r['losses']} / {r['ties']}",
-            "undefined"
-            if r["sign_p"] is None or not math.isfinite(r["sign_p"])
-            else f"{r['sign_p']:.3g}",
-            r["verdict"],
+            *_comparison_cells(r),
         ]
         for r in summary["variants"]
     ]

@@ -1,6 +1,10 @@
 """The report's headline: this run's scale in one sentence and its key figures beside the
 reference's published ones (thesis 4.3, 4.4, 4.5, 4.7), so a reader sees at once how far a run is
 from a reproduction. An undefined value prints as "undefined" with its reason, never as 0.
+
+Beside it, prediction, not detection: each family, the proxy and the persistence oracle on all
+test windows (the reference's protocol) and on the still-now ones (the object still over the whole
+observation period: early warning proper), read from the same summaries (:func:`still_section`).
 """
 
 from __future__ import annotations
@@ -16,12 +20,17 @@ import polars as pl
 from graspstab.common.io import read_json, read_parquet
 from graspstab.figures.artefacts import StudyArtefacts
 from graspstab.figures.presentation import (
+    FAMILY_ORDER,
+    ORACLE,
+    ORACLE_LABEL,
     SPLIT_NAMES,
     UNDEFINED,
     family_label,
     finite,
+    motion_reason,
 )
 from graspstab.report import html as H
+from graspstab.report import still_now as S
 
 SPLITS = ("train", "val", "test")
 
@@ -113,6 +122,85 @@ def proxy_figure(a: StudyArtefacts) -> Figure:
         "the test split holds no window" if not n
         else "the test split holds no unstable window" if not pos
         else "the test split holds no stable window" if pos == n
+        else "not computed"
+    )  # fmt: skip
+    return Figure(reason=why)
+
+
+def still_text(figure: Figure) -> str:
+    """A still-now (moving-now) figure as text: 'undefined: <reason>' when undefined (e.g.
+    "undefined: no still-now test window becomes unstable"), else as :meth:`Figure.text`."""
+    return figure.text() if finite(figure.mean) else S.undefined(figure.reason or "no value")
+
+
+def _motion_figure(row: Mapping[str, Any], metric: str, split: str, part: str,
+                   digits: int = 2) -> Figure:  # fmt: skip
+    """Mean ± std over seeds of ``<part>_<metric>`` from a seed summary's row, or why not."""
+    mean, std = row.get(f"{part}_{metric}_mean"), row.get(f"{part}_{metric}_std")
+    if not finite(mean):
+        reason = motion_reason(row.get(f"{part}_n_mean"), row.get(f"{part}_n_unstable_mean"),
+                               split, part)  # fmt: skip
+        return Figure(reason=reason, digits=digits)
+    n = row.get(f"{part}_{metric}_n", 0)
+    reason = "" if finite(std) else f"{n} seed{'s' if n != 1 else ''} defined it"
+    return Figure(mean, std if finite(std) else None, reason, digits)
+
+
+def still_baseline_figure(
+    a: StudyArtefacts, family: str, split: str, metric: str, part: str = "still"
+) -> Figure:
+    """A metric of one family at the baseline window on the split's still-now (``part``
+    "moving": moving-now) windows, mean ± std over seeds, or why it is undefined."""
+    rows = _summary(a.baseline_summary_defined, family=family, split=split)
+    if isinstance(rows, str):
+        return Figure(reason=rows)
+    if rows.is_empty():
+        return Figure(reason=f"no {family_label(family)} run in this run's baseline study")
+    return _motion_figure(rows.row(0, named=True), metric, split, part)
+
+
+def still_sweep_figure(
+    a: StudyArtefacts, family: str, window_s: float, split: str = "val", part: str = "still"
+) -> Figure:
+    """A sweep configuration's AUPRC on the split's still-now windows (mean ± std over seeds)."""
+    rows = _summary(a.sweep_summary_defined, family=family, split=split)
+    if isinstance(rows, str):
+        return Figure(reason=rows, digits=3)
+    rows = rows.filter((pl.col("window_s") - window_s).abs() < 1e-6)
+    if rows.is_empty():
+        return Figure(reason=f"{family_label(family)} at {window_s:g} s is not in this run's "
+                      "sweep", digits=3)  # fmt: skip
+    return _motion_figure(rows.row(0, named=True), "auprc", split, part, digits=3)
+
+
+def baseline_motion_row(a: StudyArtefacts, family: str, split: str = "test") -> dict[str, Any]:
+    """One family's row of the baseline seed summary (``{}`` when absent)."""
+    rows = _summary(a.baseline_summary_defined, family=family, split=split)
+    return {} if isinstance(rows, str) or rows.is_empty() else rows.row(0, named=True)
+
+
+def proxy_record(a: StudyArtefacts) -> dict[str, Any]:
+    """The friction-ratio proxy's record (proxy.json; ``{}`` when absent)."""
+    path = a.proxy
+    return read_json(path) if path is not None and Path(path).exists() else {}
+
+
+def record_figure(block: Mapping[str, Any] | None, metric: str, split: str = "test",
+                  part: str = "all") -> Figure:  # fmt: skip
+    """A ranking metric of one block of a record (``{n, n_unstable, auprc, auroc}``: all windows
+    of a split, or its still-now / moving-now windows), or why it is undefined."""
+    b = block or {}
+    if finite(b.get(metric)):
+        return Figure(float(b[metric]))
+    n, pos = b.get("n"), b.get("n_unstable")
+    if part != "all":
+        return Figure(reason=motion_reason(n, pos, split, part))
+    name = SPLIT_NAMES.get(split, split)
+    why = (
+        "not recorded" if not b
+        else f"the {name} split holds no window" if not n
+        else f"the {name} split holds no unstable window" if not pos
+        else f"the {name} split holds no stable window" if pos == n
         else "not computed"
     )  # fmt: skip
     return Figure(reason=why)
@@ -279,12 +367,84 @@ def scale_sentence(scale: Mapping[str, Any]) -> str:
     )
 
 
+#: The reference's test figures per scorer (all windows: the thesis has no other), 4.3 and 4.7.
+REFERENCE_SCORERS = {
+    "cnn": "AUPRC 98.03 % (one saved checkpoint)",
+    "gru": "AUPRC 98.43 ± 0.05 %, AUROC 97.78 ± 0.07 %",
+    "lstm": "AUPRC 98.41 % (one saved checkpoint)",
+    "proxy": "AUPRC 96.27 %",
+    ORACLE: "—",
+}
+STILL_HEADERS = [
+    "scorer", "reference (thesis; all windows)", "test AUPRC: all windows",
+    "test AUPRC: still now", "test AUROC: all windows", "test AUROC: still now",
+    "still-now test windows", "of which unstable", "chance AUPRC (still now)",
+]  # fmt: skip
+
+
+def still_rows(artefacts: StudyArtefacts | None) -> list[list[str]]:
+    """One row per family (baseline window, mean ± std over seeds), the friction-ratio proxy and
+    the persistence oracle: test AUPRC and AUROC on all windows and on the still-now windows, the
+    still-now windows' count, positives and chance level (:data:`STILL_HEADERS`); ``[]`` when no
+    artefact holds still-now metrics (written before them) or none was given."""
+    if artefacts is None:
+        return []
+    a = artefacts
+    record = proxy_record(a)
+    summary_rows = {f: baseline_motion_row(a, f) for f in FAMILY_ORDER}
+    if not (record.get("test_still") or record.get(ORACLE)
+            or any(S.has_motion(r) for r in summary_rows.values())):  # fmt: skip
+        return []
+    rows = []
+    for f, row in summary_rows.items():
+        rows.append([
+            f"{family_label(f)} (baseline window, mean ± std over seeds)", REFERENCE_SCORERS[f],
+            baseline_figure(a, f, "test", "auprc").text(),
+            still_text(still_baseline_figure(a, f, "test", "auprc")),
+            baseline_figure(a, f, "test", "auroc").text(),
+            still_text(still_baseline_figure(a, f, "test", "auroc")),
+            *S.summary_counts(row),
+        ])  # fmt: skip
+    for name, rec, all_auprc in (
+        ("friction-ratio proxy", record, proxy_figure(a)),
+        (f"{ORACLE_LABEL} (reads object motion: a reference line, not a monitor)",
+         record.get(ORACLE) or {}, None),
+    ):  # fmt: skip
+        test, still = rec.get("test"), rec.get("test_still")
+        key = "proxy" if rec is record else ORACLE
+        rows.append([
+            name, REFERENCE_SCORERS[key],
+            (all_auprc or record_figure(test, "auprc")).text(),
+            still_text(record_figure(still, "auprc", "test", "still")),
+            record_figure(test, "auroc").text(),
+            still_text(record_figure(still, "auroc", "test", "still")),
+            *S.block_counts(still),
+        ])  # fmt: skip
+    return rows
+
+
+def still_section(artefacts: StudyArtefacts | None) -> str:
+    """The headline's prediction-not-detection table (:func:`still_rows`) with what each window
+    set means; empty when no artefact holds still-now metrics."""
+    rows = still_rows(artefacts)
+    if not rows:
+        return ""
+    return (
+        f"<p>{S.ALL_WINDOWS_TEXT} {S.STILL_NOW_TEXT} {S.ORACLE_TEXT} The reference reports all "
+        "windows only.</p>"
+        + H.table(STILL_HEADERS, rows, cls="text", caption=(
+            "Prediction, not detection: this run's test AUPRC and AUROC on all windows and on "
+            "the still-now windows (percent; AUROC's chance level is 50 %)"))
+    )  # fmt: skip
+
+
 def headline_section(scale: Mapping[str, Any], artefacts: StudyArtefacts | None) -> str:
-    """The scale sentence and the table of this run's figures beside the reference's."""
+    """The scale sentence, the table of this run's figures beside the reference's and the
+    same scorers on all windows and on the still-now windows (:func:`still_section`)."""
     return f'<p class="note">{scale_sentence(scale)}</p>' + H.table(
         ["section", "figure", "this run", "reference (thesis)", "run - reference [points]"],
         headline_rows(artefacts),
         caption="Headline figures: this run beside the reference's published numbers "
         "(percent; 'undefined' gives the reason a value could not be computed)",
         cls="text",
-    )
+    ) + still_section(artefacts)

@@ -20,6 +20,7 @@ from graspstab.figures.artefacts import StudyArtefacts, exists, record, splits_f
 from graspstab.figures.presentation import LEARNING_FIGURES
 from graspstab.report import html as H
 from graspstab.report.learning_tables import (
+    baseline_still_table,
     baseline_table,
     configurations_table,
     errors_table,
@@ -35,8 +36,10 @@ from graspstab.report.study_tables import (
     choice_text,
     latency_table,
     operating_points_table,
+    proxy_still_table,
     proxy_table,
     splits_tables,
+    sweep_still_table,
     sweep_table,
 )
 
@@ -143,7 +146,7 @@ def _baseline_parts(a: StudyArtefacts, figures: Mapping[str, Path], config: Mapp
             "Fixed-task benchmark (section 4.3)",
             a.baseline_summary_defined,
             read_parquet,
-            lambda s: [baseline_table(s)],
+            lambda s: [baseline_table(s), baseline_still_table(s)],
             anchor="baseline-benchmark",
         ),
         *_figure(figures, "benchmark", CAPTIONS["benchmark"]),
@@ -170,7 +173,7 @@ def _sweep_parts(a: StudyArtefacts, figures: Mapping[str, Path]) -> list[str]:
             "Window-length sweep (section 4.5, fig. 4.5)",
             a.sweep_summary_defined,
             read_parquet,
-            sweep_table,
+            lambda s: [sweep_table(s), sweep_still_table(s)],
             anchor="sweep",
         ),
         *_figure(figures, "sweep", CAPTIONS["sweep"]),
@@ -224,7 +227,7 @@ def _diagnostic_parts(a: StudyArtefacts, figures: Mapping[str, Path]) -> list[st
             "Friction-ratio proxy (section 4.7, fig. 4.10)",
             a.proxy,
             read_json,
-            lambda p: proxy_table(p, summary),
+            lambda p: [proxy_table(p, summary), proxy_still_table(p, summary)],
             anchor="proxy",
         ),
         *_figure(figures, "proxy", CAPTIONS["proxy"]),

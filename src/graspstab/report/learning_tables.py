@@ -22,6 +22,7 @@ from graspstab.figures.presentation import (
     rows_by,
 )
 from graspstab.report import html as H
+from graspstab.report import still_now as S
 
 # The reference's numbers (thesis chapter 4), in percent unless stated.
 REFERENCE_PARAMETERS = {"cnn": 178_753, "gru": 171_777, "lstm": 25_217}  # table 4.2
@@ -141,6 +142,57 @@ def baseline_table(summary: pl.DataFrame) -> str:
             "validation-selected threshold, undefined where no window is unstable (recall), none "
             "is predicted unstable (precision) or neither (F1), where the stored tables hold 0 by "
             "scikit-learn's convention. '—': the thesis gives no number."
+        ),
+    )
+
+
+def motion_headers(split: str = "") -> list[str]:
+    """The columns of a still-now table beside its all-windows figures (after the row's keys),
+    the metrics' and the count's named after ``split`` when given (e.g. "test")."""
+    pre = f"{split} " if split else ""
+    return [
+        f"{pre}AUPRC: all windows", f"{pre}AUPRC: still now", f"{pre}AUROC: all windows",
+        f"{pre}AUROC: still now", f"still-now {pre}windows", "of which unstable",
+        "chance AUPRC (still now)",
+    ]  # fmt: skip
+
+
+MOTION_HEADERS = motion_headers()
+
+
+def motion_cells(row: Mapping[str, Any], split: str, digits: int = 2) -> list[str]:
+    """A seed summary row's :data:`MOTION_HEADERS` cells: AUPRC and AUROC (mean ± std over seeds)
+    on all windows and on the still-now windows, and the still-now windows' count, positives and
+    chance level."""
+    return [
+        pct(row.get("auprc_mean"), row.get("auprc_std"), digits),
+        S.summary_metric(row, "auprc", split, digits=digits),
+        pct(row.get("auroc_mean"), row.get("auroc_std"), digits),
+        S.summary_metric(row, "auroc", split, digits=digits),
+        *S.summary_counts(row, split, digits=digits),
+    ]
+
+
+def baseline_still_table(summary: pl.DataFrame) -> str:
+    """The benchmark's ranking metrics on all windows and on the still-now windows per split and
+    family (mean ± std over seeds, read from the seed summary); empty for a summary written
+    before the still-now metrics."""
+    if not S.has_motion(summary.columns):
+        return ""
+    rows = rows_by(summary, ["family", "split"])
+    body = [
+        [SPLIT_NAMES[split], family_label(f), *motion_cells(rows[(f, split)], split)]
+        for split in SPLITS
+        for f in ordered_families(summary["family"].to_list())
+        if (f, split) in rows
+    ]
+    return f"<p>{S.ALL_WINDOWS_TEXT} {S.STILL_NOW_TEXT}</p>" + H.table(
+        ["split", "model", *MOTION_HEADERS],
+        body,
+        caption=(
+            "Prediction, not detection at the baseline window: ranking metrics on all windows "
+            "and on the still-now windows (the object still over the whole observation "
+            "period), mean ± std over seeds; the thesis reports all windows only"
         ),
     )
 

@@ -12,6 +12,7 @@ import polars as pl
 from graspstab.common.io import read_json, read_parquet
 from graspstab.figures.presentation import UNDEFINED, family_label, finite
 from graspstab.report import html as H
+from graspstab.report import still_now as S
 from graspstab.report.learning_tables import REFERENCE_PARAMETERS
 
 ORDER = ("cnn", "gru", "lstm", "proxy")
@@ -157,10 +158,11 @@ def audit_section(audit: Mapping[str, Any] | None) -> str:
     order = list(AUDIT_LABELS)  # the leakage control last, as the text says
     sets = sorted(dict.fromkeys(summary["input_set"].to_list()),
                   key=lambda s: order.index(s) if s in order else len(order))  # fmt: skip
+    still = S.has_motion(summary.columns)
     rows = []
     for s in sets:
         width = next((shapes[(s, f)]["inputs"] for f in families if (s, f) in shapes), None)
-        cells = []
+        cells, extra, counts = [], [], None
         for f in families:
             test = summary.filter((pl.col("input_set") == s) & (pl.col("family") == f)
                                   & (pl.col("split") == "test"))  # fmt: skip
@@ -171,12 +173,22 @@ def audit_section(audit: Mapping[str, Any] | None) -> str:
                     _pct(r["auprc_mean"], std),
                     f"{shapes[(s, f)]['parameters']:,}" if (s, f) in shapes else UNDEFINED,
                 ]
+                still_std = r.get("still_auprc_n", 2) > 1 if still else False
+                extra.append(S.summary_metric(r, "auprc", std=still_std, sign=False, digits=1))
+                # every family of an input set scores the same test windows: the first's counts
+                counts = counts or S.summary_counts(r, digits=1, sign=False)
             else:
                 cells += [UNDEFINED, UNDEFINED]
-        rows.append([AUDIT_LABELS.get(s, s), width, *cells])
+                extra.append(UNDEFINED)
+        counts = counts or [UNDEFINED] * 3
+        rows.append([AUDIT_LABELS.get(s, s), width, *cells,
+                     *([*extra, *counts] if still else [])])  # fmt: skip
     headers = ["inputs", "per timestep"]
     for f in families:
         headers += [f"{_label(f)} test AUPRC (%)", f"{_label(f)} parameters"]
+    if still:
+        headers += [f"{_label(f)} test AUPRC, still now (%)" for f in families]
+        headers += ["still-now test windows", "of which unstable", "chance AUPRC, still now (%)"]
     parts.append(
         "<p>Table 4.2's parameter counts ("
         + ", ".join(f"{_label(f)} {REFERENCE_PARAMETERS[f]:,}" for f in families)
@@ -187,5 +199,8 @@ def audit_section(audit: Mapping[str, Any] | None) -> str:
         "position and velocity (the last row) are what the labels are computed from: a leakage "
         "control, not a candidate input.</p>"
     )
+    if still:
+        parts.append(f"<p>{S.ALL_WINDOWS_TEXT} {S.STILL_NOW_TEXT} The columns 'still now' give "
+                     "each input set's test AUPRC on those windows.</p>")  # fmt: skip
     parts.append(H.table(headers, rows, caption="Input audit: test AUPRC and parameters"))
     return "\n".join(parts)

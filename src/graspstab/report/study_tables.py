@@ -8,9 +8,18 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.figures.presentation import family_label, ordered_families, rows_by
+from graspstab.figures.presentation import (
+    ORACLE,
+    ORACLE_LABEL,
+    UNDEFINED,
+    family_label,
+    motion_reason,
+    ordered_families,
+    rows_by,
+)
 from graspstab.report import html as H
-from graspstab.report.learning_tables import note, num, pct
+from graspstab.report import still_now as S
+from graspstab.report.learning_tables import motion_cells, motion_headers, note, num, pct
 
 # The reference's numbers (thesis chapter 4).
 REFERENCE_LATENCY = {  # section 4.5: median ± std [ms], throughput [windows/s] (approximate)
@@ -125,6 +134,31 @@ def sweep_table(summary: pl.DataFrame) -> str:
     )
 
 
+def sweep_still_table(summary: pl.DataFrame) -> str:
+    """Test ranking metrics per window and family on all windows and on the still-now windows
+    (mean ± std over seeds); empty for a summary written before the still-now metrics."""
+    if not S.has_motion(summary.columns):
+        return ""
+    test = summary.filter(pl.col("split") == "test")
+    rows = rows_by(test, ["family", "window_s"])
+    body = [
+        [f"{w * 1000:g}", family_label(f), *motion_cells(rows[(f, w)], "test", 1)]
+        for w in sorted(test["window_s"].unique().to_list())
+        for f in ordered_families(test["family"].to_list())
+        if (f, w) in rows
+    ]
+    return H.table(
+        ["window [ms]", "model", *motion_headers("test")],
+        body,
+        caption=(
+            "Prediction, not detection across the sweep: test ranking metrics on all windows and "
+            "on the still-now windows (the object still over the whole observation period), "
+            "mean ± std over seeds. A longer window leaves fewer still-now windows: its "
+            "observation period has more time to see the object move."
+        ),
+    )
+
+
 def latency_table(latency: pl.DataFrame) -> str:
     """Baseline forward-pass latency and throughput beside the reference's (fig. 4.6)."""
     base = latency.filter(pl.col("study") == "baseline")
@@ -173,6 +207,10 @@ def splits_tables(summary: Mapping[str, Any], family: str | None) -> str:
         caption=f"Split robustness (section 4.4, fig. 4.4), "
         f"{family_label(family) if family else 'model'} of the split study",
     )
+    still = s.get("still")
+    if isinstance(still, dict):
+        stats = stats + splits_still_table(still)
+    motion = any("still_auprc" in r for r in s.get("hardest", []))
     hard = [
         [
             r["assignment"],
@@ -180,14 +218,87 @@ def splits_tables(summary: Mapping[str, Any], family: str | None) -> str:
             r["test_objects"],
             pct(r.get("auprc"), r.get("auprc_std")),
             r.get("seeds"),
+            *(_assignment_still(r) if motion else []),
         ]
         for r in s.get("hardest", [])
     ]
     return stats + H.table(
-        ["assignment", "validation objects", "test objects", "test AUPRC", "seeds"],
+        ["assignment", "validation objects", "test objects", "test AUPRC", "seeds",
+         *(["test AUPRC: still now", "still-now test windows", "of which unstable",
+            "chance AUPRC (still now)"] if motion else [])],
         hard,
         caption="Hardest sampled assignments (lowest mean test AUPRC). The thesis's hardest "
         "pairings repeatedly involve foam_brick, especially with lemon or sponge.",
+    )  # fmt: skip
+
+
+def _assignment_still(r: Mapping[str, Any]) -> list[str]:
+    """An assignment's still-now cells (splits summary.json, per_assignment / hardest rows)."""
+    auprc = S.percent(r.get("still_auprc"), r.get("still_auprc_std"))
+    reason = motion_reason(r.get("still_n"), r.get("still_n_unstable"), "test")
+    return [auprc or S.undefined(reason),
+            *S.block_counts({"n": r.get("still_n"), "n_unstable": r.get("still_n_unstable"),
+                             "chance": r.get("still_chance")})]  # fmt: skip
+
+
+def splits_still_table(still: Mapping[str, Any]) -> str:
+    """The split study's test AUPRC on the still-now windows across assignments (its summary's
+    ``still`` block: the same statistics as the all-windows ones)."""
+    total, defined = still.get("assignments", "?"), still.get("defined", "?")
+    why = S.undefined(f"none of {total} assignments has a defined still-now test AUPRC (its "
+                      "still-now test windows hold no unstable window, or no stable one)")
+
+    def cell(text: str, reason: str = why) -> str:
+        return reason if text == UNDEFINED else text
+
+    rows = [
+        ["assignments", f"{total} ({defined} defined)"],
+        ["mean ± std", cell(pct(still.get("mean"), still.get("std")))],
+        ["median", cell(pct(still.get("median")))],
+        ["minimum", cell(pct(still.get("min")))],
+        ["fixed split", cell(pct(still.get("fixed_split")), S.undefined(
+            "the fixed split's still-now test windows hold no unstable window, or no stable "
+            "one"))],
+    ]
+    return H.table(
+        ["test AUPRC across assignments: still now", "ours"],
+        rows,
+        caption="Split robustness on the still-now test windows (the object still over the "
+        "whole observation period); the thesis reports all windows only",
+    )
+
+
+def proxy_still_table(proxy: Mapping[str, Any], summary: pl.DataFrame | None) -> str:
+    """The proxy, the models (mean ± std over seeds) and the persistence oracle on all test
+    windows and on the still-now ones, with their count, positives and chance level; empty for
+    a proxy record written before the still-now metrics."""
+    if "test_still" not in proxy and ORACLE not in proxy:
+        return ""
+
+    def record_row(name: str, rec: Mapping[str, Any]) -> list[str]:
+        test, still = rec.get("test") or {}, rec.get("test_still")
+        return [
+            name,
+            pct(test.get("auprc")),
+            S.block_metric(still, "auprc"),
+            pct(test.get("auroc")),
+            S.block_metric(still, "auroc"),
+            *S.block_counts(still),
+        ]
+
+    body = [record_row("friction-ratio proxy", proxy)]
+    if summary is not None and S.has_motion(summary.columns):
+        rows = rows_by(summary.filter(pl.col("split") == "test"), ["family"])
+        for f in ordered_families(f for (f,) in rows):
+            body.append([f"{family_label(f)} (mean ± std over seeds)",
+                         *motion_cells(rows[(f,)], "test")])  # fmt: skip
+    if ORACLE in proxy:
+        body.append(record_row(f"{ORACLE_LABEL} (reads object motion)", proxy[ORACLE]))
+    return f"<p>{S.ALL_WINDOWS_TEXT} {S.STILL_NOW_TEXT} {S.ORACLE_TEXT}</p>" + H.table(
+        ["score", *motion_headers("test")],
+        body,
+        caption="Prediction, not detection: the proxy, the models and the persistence oracle "
+        "on all test windows and on the still-now ones; the thesis reports all windows only",
     )
 
 
