@@ -119,3 +119,42 @@ def test_cost_counts_only_the_jobs_after_since(tmp_path: Path) -> None:
     assert every["job_s"] == 107.0 and every["jobs"] == 2
     later = rp._cost(tmp_path, None, None, since=1_500.0)
     assert later["job_s"] == 7.0 and [r["rule"] for r in later["rules"]] == ["new_rule"]
+
+
+def _still_record_block(n_unstable: int) -> dict:
+    fig = {"mean": 0.95, "std": 0.01, "reason": "", "text": "95.00 ± 1.00 %"}
+    families = ("cnn", "gru", "lstm")
+    still_fig = {"mean": 0.41 if n_unstable else None, "std": 0.02 if n_unstable else None}
+    return {
+        "datasets": None,
+        "baseline": {f: {"auprc": fig, "auroc": fig, "val_auprc": fig} for f in families},
+        "proxy": {"mean": 0.9, "std": None, "reason": "", "text": "90.00 %"},
+        "still": {
+            **{f: {"auprc": still_fig, "auroc": still_fig} for f in families},
+            "windows": {"n": 120.0, "n_unstable": float(n_unstable),
+                        "chance": n_unstable / 120},
+            "proxy": {"auprc": 0.3 if n_unstable else None, "auroc": 0.55 if n_unstable else None},
+            "oracle": {"all": {"auprc": 0.99, "auroc": 0.98},
+                       "still": {"auprc": n_unstable / 120 if n_unstable else None,
+                                 "auroc": 0.5 if n_unstable else None}},
+        },
+    }  # fmt: skip
+
+
+def test_still_now_table_and_sentence_from_the_record() -> None:
+    """Prediction, not detection in docs/results.md and the README: the still-now figures beside
+    the all-window ones, and the plain sentence when no still-now window becomes unstable."""
+    from graspstab.report.results_page import still_table, still_text
+
+    some = _still_record_block(12)
+    table = still_table(some)
+    assert "| GRU | 95.00 ± 1.00 | 41.00 ± 2.00 |" in table
+    assert "| persistence oracle (reads object motion) | 99.00 | 10.00 |" in table
+    assert "120, 12, 10.00" in table
+    assert "On the 120 still-now test windows (12 unstable, chance 10.00 %)" in still_text(some)
+    none = _still_record_block(0)
+    assert "undefined (no still-now test window becomes unstable)" in still_table(none)
+    assert "none becomes unstable" in still_text(none)
+    # a record written before these figures: no table, no sentence
+    old = {k: v for k, v in some.items() if k != "still"}
+    assert still_table(old) is None and still_text(old) == ""

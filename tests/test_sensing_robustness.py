@@ -320,3 +320,19 @@ def test_audit_table_lists_the_leakage_control_last(tmp_path: Path) -> None:
     ]
     assert at == sorted(at)
     assert "1,016" in html and "1,015" in html
+
+
+def test_still_now_condition_table_reads_the_still_columns() -> None:
+    """The sensing section's still-now table reads each condition's still-now mean (null where no
+    still-now window is unstable: undefined, never 0), beside the unchanged all-window table."""
+    from graspstab.figures.presentation import UNDEFINED
+    from graspstab.report.sensing import condition_table
+
+    summary = [{"kind": "clean", "corruption": "none", "strength": 0.0, "family": f,
+                "training": t, "auprc_mean": 0.9, "auprc_std": None, "runs": 1,
+                "still_auprc_mean": s} for f, t, s in (("cnn", "clean", 0.4),
+                                                        ("proxy", "none", None))]  # fmt: skip
+    _, rows = condition_table(summary, ("clean",), metric="still_auprc")
+    assert rows == [["clean (simulator)", "", "40.0", UNDEFINED]]
+    _, rows = condition_table(summary, ("clean",))
+    assert rows == [["clean (simulator)", "", "90.0", "90.0"]]

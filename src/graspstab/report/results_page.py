@@ -30,7 +30,7 @@ import polars as pl
 from graspstab.common.io import read_json, read_parquet, write_text
 from graspstab.common.provenance import cpu_model
 from graspstab.figures.artefacts import StudyArtefacts
-from graspstab.figures.presentation import family_label, finite
+from graspstab.figures.presentation import UNDEFINED, family_label, finite
 from graspstab.report.funnel import funnel_total, read_funnel
 from graspstab.report.headline import (
     HEADLINE,
@@ -148,6 +148,8 @@ def _protocol_block(root: Path) -> dict[str, Any] | None:
         for f in FAMILIES
     }
     block["proxy"] = _fig(proxy_figure(a))
+    if (still := _still_block(a)) is not None:
+        block["still"] = still
     if Path(a.sweep_runs).is_file():
         runs = read_parquet(a.sweep_runs).filter(pl.col("split") == "val")
         block["sweep"] = [
@@ -159,6 +161,36 @@ def _protocol_block(root: Path) -> dict[str, Any] | None:
             .sort("family", "window_s").iter_rows(named=True)
         ]  # fmt: skip
     return block
+
+
+def _still_block(a: StudyArtefacts) -> dict[str, Any] | None:
+    """The test split's still-now figures (evaluation.detection), read as the jobs wrote them:
+    each family's mean and std over seeds, the proxy's and the persistence oracle's blocks, and
+    the still-now windows' count, positives and chance. None for a run without them."""
+    path = Path(a.baseline_summary_defined)
+    if not path.is_file() or not Path(a.proxy).is_file():
+        return None
+    summary = read_parquet(path).filter(pl.col("split") == "test")
+    if "still_auprc_mean" not in summary.columns:
+        return None
+    rows = {r["family"]: r for r in summary.iter_rows(named=True)}
+    proxy = read_json(a.proxy)
+
+    def num(v: Any) -> float | None:
+        return float(v) if finite(v) else None
+
+    out: dict[str, Any] = {
+        f: {m: {"mean": num(rows[f].get(f"still_{m}_mean")),
+                "std": num(rows[f].get(f"still_{m}_std"))} for m in ("auprc", "auroc")}
+        for f in FAMILIES if f in rows
+    }  # fmt: skip
+    block = proxy.get("test_still") or {}
+    out["windows"] = {k: num(block.get(k)) for k in ("n", "n_unstable", "chance")}
+    out["proxy"] = {m: num(block.get(m)) for m in ("auprc", "auroc")}
+    oracle = proxy.get("persistence") or {}
+    out["oracle"] = {part: {m: num((oracle.get(key) or {}).get(m)) for m in ("auprc", "auroc")}
+                     for part, key in (("all", "test"), ("still", "test_still"))}  # fmt: skip
+    return out
 
 
 def _latency(path: Path) -> list[dict[str, Any]]:
@@ -411,6 +443,50 @@ def _protocol_table(block: Mapping[str, Any]) -> str:
     return _table(["scorer", "test AUPRC", "test AUROC", "validation AUPRC"], rows)
 
 
+def _still_cell(fig: Mapping[str, Any] | None, reason: str) -> str:
+    if not fig or fig.get("mean") is None:
+        return f"{UNDEFINED} ({reason})"
+    return _pm(fig) if "std" in fig else _pct(fig["mean"])
+
+
+def _still_reason(block: Mapping[str, Any]) -> str:
+    w = block["still"]["windows"]
+    if not w.get("n"):
+        return "no still-now test window"
+    return "no still-now test window becomes unstable" if not w.get("n_unstable") else "no value"
+
+
+def still_table(block: Mapping[str, Any]) -> str | None:
+    """Prediction, not detection: test AUPRC and AUROC on all windows and on the still-now ones
+    (the object still over the whole observation period), with the still-now windows' count,
+    positives and chance; None for a record without them."""
+    st = block.get("still")
+    if not st:
+        return None
+    why = _still_reason(block)
+    rows = []
+    for f in FAMILIES:
+        if f in st:
+            b = block["baseline"][f]
+            rows.append([family_label(f), _pm(b["auprc"]), _still_cell(st[f]["auprc"], why),
+                         _pm(b["auroc"]), _still_cell(st[f]["auroc"], why)])  # fmt: skip
+    proxy = {m: {"mean": st["proxy"][m]} for m in ("auprc", "auroc")}
+    rows.append(["friction-ratio proxy", _pm(block["proxy"]), _still_cell(proxy["auprc"], why),
+                 "-", _still_cell(proxy["auroc"], why)])  # fmt: skip
+    o = st["oracle"]
+    rows.append(["persistence oracle (reads object motion)",
+                 _still_cell({"mean": o["all"]["auprc"]}, "no value"),
+                 _still_cell({"mean": o["still"]["auprc"]}, why),
+                 _still_cell({"mean": o["all"]["auroc"]}, "no value"),
+                 _still_cell({"mean": o["still"]["auroc"]}, why)])  # fmt: skip
+    w = st["windows"]
+    rows.append(["still-now test windows: count, unstable, chance",
+                 "-", f"{int(w['n'] or 0):,}, {int(w['n_unstable'] or 0):,}, "
+                 f"{_still_cell({'mean': w['chance']}, 'no window')}", "-", "-"])  # fmt: skip
+    return _table(["scorer", "test AUPRC, all windows", "still now", "test AUROC, all windows",
+                   "still now"], rows)  # fmt: skip
+
+
 def _sweep_table(block: Mapping[str, Any]) -> str:
     sweep = block.get("sweep") or []
     windows = sorted({r["window_s"] for r in sweep})
@@ -461,6 +537,14 @@ def profile_block(rec: Mapping[str, Any]) -> str:
         title = PROTOCOLS.get("" if name == "reference" else name, name)
         parts.append(f"**Baseline at the 0.2 s window, {title}** (mean ± std over seeds, %):")
         parts.append(_protocol_table(block))
+        if (still := still_table(block)) is not None:
+            parts.append(
+                f"**Prediction, not detection, {title}**: the same test windows, and those whose "
+                "object is still over the whole observation period (*still now*: only foresight "
+                "can rank them); the persistence oracle reads the object's motion, which no "
+                "sensor sees, and is a reference line, never a monitor:"
+            )
+            parts.append(still)
         if block.get("sweep"):
             parts.append(f"**Window sweep, {title}**: validation AUPRC (%), mean ± std over seeds:")
             parts.append(_sweep_table(block))
@@ -642,7 +726,34 @@ def readme_text(rec: Mapping[str, Any]) -> str:
         text += f"; the proxy scores at or above the {' and the '.join(below)}"
     if above and below:
         text += f" and below the {' and the '.join(above)}"
-    return text + "."
+    return text + "." + still_text(block)
+
+
+def still_text(block: Mapping[str, Any]) -> str:
+    """One sentence on the still-now test windows (early warning proper), from the record."""
+    st = block.get("still")
+    if not st:
+        return ""
+    w = st["windows"]
+    n, pos = int(w.get("n") or 0), int(w.get("n_unstable") or 0)
+    if n == 0:
+        return " No test window has its object still over the whole observation period."
+    if pos == 0:
+        return (
+            f" Of the {n:,} test windows whose object is still over the whole observation "
+            "period, none becomes unstable: on this split every unstable window already moves "
+            "while it is observed, so the figures above measure recognising motion under way, "
+            "and early warning cannot be measured here."
+        )
+    cells = ", ".join(
+        f"{family_label(f)} {_still_cell(st[f]['auprc'], 'undefined')}"
+        for f in FAMILIES if f in st
+    )  # fmt: skip
+    return (
+        f" On the {n:,} still-now test windows ({pos:,} unstable, chance "
+        f"{_pct(w.get('chance'))} %), test AUPRC is {cells}, proxy "
+        f"{_still_cell({'mean': st['proxy']['auprc']}, 'undefined')}: early warning proper."
+    )
 
 
 def readme_cost(rec: Mapping[str, Any]) -> str:

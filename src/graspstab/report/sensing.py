@@ -36,10 +36,14 @@ OWN = "augmented:"
 
 
 def condition_table(
-    summary: list[dict[str, Any]], kinds: tuple[str, ...], corruptions: tuple[str, ...] = ()
+    summary: list[dict[str, Any]],
+    kinds: tuple[str, ...],
+    corruptions: tuple[str, ...] = (),
+    metric: str = "auprc",
 ) -> tuple[list, list]:
     """Headers and rows: one row per condition of ``kinds`` (curves: of ``corruptions`` only,
-    when given), test AUPRC (%) per scorer; a per-corruption model fills its own curve's rows."""
+    when given), test ``metric`` (%; ``still_auprc``: on the still-now windows) per scorer; a
+    per-corruption model fills its own curve's rows."""
     frame = pl.DataFrame(summary, infer_schema_length=None).filter(pl.col("kind").is_in(kinds))
     if corruptions:
         frame = frame.filter((pl.col("kind") != "curve") | pl.col("corruption").is_in(corruptions))
@@ -60,9 +64,9 @@ def condition_table(
         row = [key[1] if key[0] != "clean" else "clean (simulator)", strength]
         for f, t in scorers:
             cell = cells.get((f, own if t == "own" else t))
-            std = cell["auprc_std"] if cell is not None and cell["runs"] > 1 else None
+            std = cell.get(f"{metric}_std") if cell is not None and cell["runs"] > 1 else None
             missing = "n/a" if t == "own" else UNDEFINED  # no model of that row's own corruption
-            row.append(missing if cell is None else _pct(cell["auprc_mean"], std))
+            row.append(missing if cell is None else _pct(cell.get(f"{metric}_mean"), std))
         rows.append(row)
     return headers, rows
 
@@ -100,6 +104,16 @@ def sensing_section(sensing: Mapping[str, Any] | None, config: Mapping[str, Any]
     )
     headers, rows = condition_table(info["summary"], ("clean", "curve"))
     parts.append(H.table(headers, rows, caption="Test AUPRC (%) per corruption and strength"))
+    still = info.get("still")
+    if still and info["summary"] and "still_auprc_mean" in info["summary"][0]:
+        parts.append(
+            f"<p>On the {still['n']} still-now test windows (the object still over the whole "
+            f"observation period: early warning proper), {still['n_unstable']} unstable (chance "
+            f"AUPRC {_pct(still['chance'])} %); {UNDEFINED} where none is unstable.</p>"
+        )
+        headers, rows = condition_table(info["summary"], ("clean", "curve"), metric="still_auprc")
+        parts.append(H.table(headers, rows, caption="Still-now test AUPRC (%) per corruption "
+                             "and strength (mean over seeds)"))  # fmt: skip
     if "figure" in sensing:
         parts.append(H.image(Path(sensing["figure"]), "sensor robustness curves",
                              "Test AUPRC against each corruption's strength (solid: trained on "
