@@ -1,0 +1,135 @@
+"""How far eq. 23's "unstable" (object speed at or above v_slip) is from the grasp failing: on a
+finished run's replays, per protocol, the timestep labels of eq. 23 against a displacement label
+(the object more than D from its settled position; the hand is fixed, so this is the object
+leaving the grasp, not drifting), over each usable interval (3.3.1), and when each grasp fails.
+
+    python benchmarks/label_sources.py <workdir> [--distances-mm 2 5 10]
+
+Per protocol (results/replay, and results/creep_free/replay when the run has it) and distance D:
+the usable steps; the share unstable by each label; their agreement and Cohen's kappa; the usable
+grasps, and how many already move (eq. 23) at their settle index; those that fail (displacement
+above D before contact ends), of those how many moved at settle and how many fail at least 0.5 s
+after settling (the only grasps an early warning could help); and the median onset after
+settling. Uses the repository's default labelling config (as label_preview.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import yaml
+
+from graspstab.labels.interval import usable_interval
+from graspstab.labels.windows import timestep_labels
+from graspstab.replay.traces import TraceFile
+
+CONFIG = Path(__file__).resolve().parents[1] / "config"
+STILL_BEFORE_S = 0.5  # a failure this long after settling leaves room for a warning
+
+
+def displacement_labels(position: np.ndarray, settle: int, distance: float) -> np.ndarray:
+    """1 where the object is more than ``distance`` [m] from its position at ``settle``."""
+    p = np.asarray(position, dtype=np.float64)
+    return (np.linalg.norm(p - p[settle], axis=1) > distance).astype(np.uint8)
+
+
+def failure_onset(position: np.ndarray, settle: int, end: int, distance: float) -> int | None:
+    """The first step in [settle, end) whose displacement exceeds ``distance``, or None."""
+    hit = np.flatnonzero(displacement_labels(position, settle, distance)[settle:end])
+    return settle + int(hit[0]) if hit.size else None
+
+
+def confusion(a: np.ndarray, b: np.ndarray) -> dict[str, int]:
+    """Counts of the four (a, b) label pairs."""
+    a, b = np.asarray(a, bool), np.asarray(b, bool)
+    return {"both": int((a & b).sum()), "first_only": int((a & ~b).sum()),
+            "second_only": int((~a & b).sum()), "neither": int((~a & ~b).sum())}  # fmt: skip
+
+
+def kappa(c: dict[str, int]) -> float:
+    """Cohen's kappa of a :func:`confusion` (NaN when chance agreement is total)."""
+    n = sum(c.values())
+    if n == 0:
+        return float("nan")
+    agree = (c["both"] + c["neither"]) / n
+    a1, b1 = (c["both"] + c["first_only"]) / n, (c["both"] + c["second_only"]) / n
+    chance = a1 * b1 + (1 - a1) * (1 - b1)
+    return float("nan") if chance == 1 else (agree - chance) / (1 - chance)
+
+
+def protocol_rows(replay_dir: Path, lab: dict, dt: float, distances: list[float]) -> list[dict]:
+    """One row per distance for the replays under ``replay_dir``."""
+    tally = {d: collections.Counter() for d in distances}
+    onsets: dict[float, list[float]] = {d: [] for d in distances}
+    for table_path in sorted(replay_dir.glob("*/replays_*.parquet")):
+        traces = table_path.with_name(table_path.name.replace("replays_", "traces_"))
+        table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
+        with TraceFile(traces.with_suffix(".npz")) as npz:
+            for row in table.iter_rows(named=True):
+                tr = npz.grasp(row["grasp_id"], ("velocity", "min_distance", "position"))
+                speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
+                dist = tr["min_distance"].astype(np.float64)
+                ui = usable_interval(speed, dist, dt, lab["settle"], lab["contact_loss_s"])
+                s, e = ui.settle_index, ui.contact_end
+                if ui.rejected or e <= s:
+                    continue
+                u = timestep_labels(speed, lab["v_slip"])
+                for d in distances:
+                    t = tally[d]
+                    t.update(confusion(u[s:e], displacement_labels(tr["position"], s, d)[s:e]))
+                    t["grasps"] += 1
+                    t["grasps moving at settle"] += int(u[s])
+                    onset = failure_onset(tr["position"], s, e, d)
+                    if onset is None:
+                        continue
+                    t["failing"] += 1
+                    t["moving_at_settle"] += int(u[s])
+                    t["late"] += int((onset - s) * dt >= STILL_BEFORE_S)
+                    onsets[d].append((onset - s) * dt)
+    rows = []
+    for d in distances:
+        t = tally[d]
+        c = {k: t[k] for k in ("both", "first_only", "second_only", "neither")}
+        n = sum(c.values())
+        rows.append({
+            "D [mm]": 1000 * d, "steps": n,
+            "eq23 unstable": (c["both"] + c["first_only"]) / n if n else float("nan"),
+            "displaced": (c["both"] + c["second_only"]) / n if n else float("nan"),
+            "agreement": (c["both"] + c["neither"]) / n if n else float("nan"),
+            "kappa": kappa(c), "grasps": t["grasps"],
+            "moving at settle": t["grasps moving at settle"], "failing": t["failing"],
+            "failing, moving at settle": t["moving_at_settle"],
+            f"failing >= {STILL_BEFORE_S} s after settle": t["late"],
+            "median onset [s]": float(np.median(onsets[d])) if onsets[d] else float("nan"),
+        })  # fmt: skip
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print one table per protocol."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("workdir", type=Path)
+    ap.add_argument("--distances-mm", type=float, nargs="+", default=[2.0, 5.0, 10.0])
+    args = ap.parse_args(argv)
+    lab = yaml.safe_load((CONFIG / "labels" / "default.yaml").read_text())
+    dt = yaml.safe_load((CONFIG / "replay" / "default.yaml").read_text())["timestep"]
+    distances = [d / 1000 for d in args.distances_mm]
+    protocols = {"reference": args.workdir / "results" / "replay",
+                 "creep-free": args.workdir / "results" / "creep_free" / "replay"}  # fmt: skip
+    pl.Config.set_tbl_rows(50)
+    pl.Config.set_tbl_cols(20)
+    pl.Config.set_tbl_width_chars(220)
+    pl.Config.set_float_precision(4)
+    for name, folder in protocols.items():
+        if not folder.is_dir():
+            continue
+        print(f"\n{name} protocol ({folder}):")
+        print(pl.DataFrame(protocol_rows(folder, lab, dt, distances)))
+
+
+if __name__ == "__main__":
+    main()

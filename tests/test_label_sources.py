@@ -1,0 +1,40 @@
+"""benchmarks/label_sources.py: eq. 23's labels against the displacement label, on constructed
+object paths against hand-computed references."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+
+from tests.conftest import REPO
+
+spec = importlib.util.spec_from_file_location(
+    "label_sources", REPO / "benchmarks" / "label_sources.py"
+)
+ls = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(ls)
+
+
+def test_displacement_and_onset_of_an_object_leaving_after_a_still_period() -> None:
+    # still for 10 steps after settle (index 2), then 1 mm per step along x
+    x = np.concatenate([np.zeros(12), np.arange(1, 11) * 1e-3])
+    pos = np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1) + [0.1, 0.2, 0.3]
+    d = ls.displacement_labels(pos, 2, 0.0045)
+    assert d[:16].sum() == 0 and d[16:].all()  # 5 mm > 4.5 mm from step 16 on
+    assert ls.failure_onset(pos, 2, len(x), 0.0045) == 16
+    assert ls.failure_onset(pos, 2, 15, 0.0045) is None  # contact ended first
+    assert ls.failure_onset(pos, 2, len(x), 0.05) is None
+
+
+def test_confusion_and_kappa_against_hand_counts() -> None:
+    a = np.array([1, 1, 0, 0, 1, 0, 0, 0])
+    b = np.array([1, 0, 1, 0, 1, 0, 0, 0])
+    c = ls.confusion(a, b)
+    assert c == {"both": 2, "first_only": 1, "second_only": 1, "neither": 4}
+    # agreement 6/8, chance (3/8)^2 + (5/8)^2 = 34/64
+    assert ls.kappa(c) == pytest.approx((6 / 8 - 34 / 64) / (1 - 34 / 64))
+    assert ls.kappa(ls.confusion(a, a)) == pytest.approx(1.0)
+    assert math.isnan(ls.kappa(ls.confusion(np.zeros(4), np.zeros(4))))
