@@ -3,14 +3,19 @@ finished run's replays, per protocol, the timestep labels of eq. 23 against a di
 (the object more than D from its settled position; the hand is fixed, so this is the object
 leaving the grasp, not drifting), over each usable interval (3.3.1), and when each grasp fails.
 
-    python benchmarks/label_sources.py <workdir> [--distances-mm 2 5 10]
+    python benchmarks/label_sources.py <workdir> [--distances-mm 2 5 10] [--settle-mm-s 5 1.2]
 
 Per protocol (results/replay, and results/creep_free/replay when the run has it) and distance D:
 the usable steps; the share unstable by each label; their agreement and Cohen's kappa; the usable
 grasps, and how many already move (eq. 23) at their settle index; those that fail (displacement
 above D before contact ends), of those how many moved at settle and how many fail at least 0.5 s
 after settling (the only grasps an early warning could help); and the median onset after
-settling. Uses the repository's default labelling config (as label_preview.py).
+settling. A second table per protocol gives, for each settle speed (eq. 20's v_settle, 5 mm/s,
+and others: 1.2 mm/s makes "settled" and eq. 23's "stable" the same), the usable grasps, the
+baseline task's labelled windows (eq. 26 starts drawn as the labelling stage draws them, seed 42)
+and their unstable ones, and how many are still now (no unstable step while observed) and of those
+unstable: the windows on which an early warning can be measured at all. Uses the repository's
+default labelling config (as label_preview.py).
 """
 
 from __future__ import annotations
@@ -24,7 +29,8 @@ import polars as pl
 import yaml
 
 from graspstab.labels.interval import usable_interval
-from graspstab.labels.windows import timestep_labels
+from graspstab.labels.label_windows import grasp_rng
+from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
 from graspstab.replay.traces import TraceFile
 
 CONFIG = Path(__file__).resolve().parents[1] / "config"
@@ -109,11 +115,57 @@ def protocol_rows(replay_dir: Path, lab: dict, dt: float, distances: list[float]
     return rows
 
 
+def still_windows(u: np.ndarray, starts: np.ndarray, w: int) -> np.ndarray:
+    """Whether each window [s, s + W) has no unstable step (eq. 23): still now."""
+    csum = np.concatenate([[0], np.cumsum(np.asarray(u, dtype=np.int64))])
+    s = np.asarray(starts, dtype=np.int64)
+    return (csum[s + w] - csum[s]) == 0
+
+
+def window_rows(replay_dir: Path, lab: dict, dt: float, settle_speeds: list[float]) -> list[dict]:
+    """One row per settle speed: usable grasps, labelled windows at the baseline task, unstable
+    ones, still-now ones and still-now unstable ones."""
+    w, o, h = step_counts(lab["window_s"], lab["offset_s"], lab["horizon_s"], dt)
+    rows = []
+    for v in settle_speeds:
+        settle = {**lab["settle"], "speed_max": v}
+        c: collections.Counter = collections.Counter()
+        for table_path in sorted(replay_dir.glob("*/replays_*.parquet")):
+            traces = table_path.with_name(table_path.name.replace("replays_", "traces_"))
+            table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
+            with TraceFile(traces.with_suffix(".npz")) as npz:
+                for row in table.iter_rows(named=True):
+                    tr = npz.grasp(row["grasp_id"], ("velocity", "min_distance"))
+                    speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
+                    dist = tr["min_distance"].astype(np.float64)
+                    ui = usable_interval(speed, dist, dt, settle, lab["contact_loss_s"])
+                    if ui.rejected:
+                        continue
+                    rng = grasp_rng(42, row["object"], int(row["grasp_id"]))
+                    starts = window_starts(ui.settle_index, ui.contact_end, w, o, h,
+                                           int(lab["windows_per_grasp"]), rng)  # fmt: skip
+                    if not len(starts):
+                        continue
+                    u = timestep_labels(speed, lab["v_slip"])
+                    _, y = predictive_labels(u, starts, ui.contact_end, w, o, h,
+                                             lab["label_low"], lab["label_high"])  # fmt: skip
+                    still = still_windows(u, starts, w) & (y >= 0)
+                    c.update(grasps=1, windows=int((y >= 0).sum()), unstable=int((y == 1).sum()),
+                             still=int(still.sum()),
+                             still_unstable=int((still & (y == 1)).sum()))  # fmt: skip
+        rows.append({"v_settle [mm/s]": 1000 * v, "usable grasps": c["grasps"],
+                     "windows": c["windows"], "unstable": c["unstable"], "still now": c["still"],
+                     "still now, unstable": c["still_unstable"]})  # fmt: skip
+    return rows
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print one table per protocol."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("workdir", type=Path)
     ap.add_argument("--distances-mm", type=float, nargs="+", default=[2.0, 5.0, 10.0])
+    ap.add_argument("--settle-mm-s", type=float, nargs="+", default=[5.0, 1.2],
+                    help="settle speeds (eq. 20's v_settle) for the windows table")
     args = ap.parse_args(argv)
     lab = yaml.safe_load((CONFIG / "labels" / "default.yaml").read_text())
     dt = yaml.safe_load((CONFIG / "replay" / "default.yaml").read_text())["timestep"]
@@ -129,6 +181,8 @@ def main(argv: list[str] | None = None) -> None:
             continue
         print(f"\n{name} protocol ({folder}):")
         print(pl.DataFrame(protocol_rows(folder, lab, dt, distances)))
+        settle = [v / 1000 for v in args.settle_mm_s]
+        print(pl.DataFrame(window_rows(folder, lab, dt, settle)))
 
 
 if __name__ == "__main__":

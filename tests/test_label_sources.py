@@ -38,3 +38,12 @@ def test_confusion_and_kappa_against_hand_counts() -> None:
     assert ls.kappa(c) == pytest.approx((6 / 8 - 34 / 64) / (1 - 34 / 64))
     assert ls.kappa(ls.confusion(a, a)) == pytest.approx(1.0)
     assert math.isnan(ls.kappa(ls.confusion(np.zeros(4), np.zeros(4))))
+
+
+def test_still_windows_need_every_observed_step_below_v_slip() -> None:
+    u = np.zeros(20, dtype=np.uint8)
+    u[7] = 1
+    starts = np.array([0, 3, 8, 12])
+    # windows [0, 5), [3, 8) holds step 7, [8, 13), [12, 17)
+    assert ls.still_windows(u, starts, 5).tolist() == [True, False, True, True]
+    assert ls.still_windows(u, np.array([7]), 1).tolist() == [False]
