@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -67,10 +68,9 @@ def kappa(c: dict[str, int]) -> float:
     return float("nan") if chance == 1 else (agree - chance) / (1 - chance)
 
 
-def protocol_rows(replay_dir: Path, lab: dict, dt: float, distances: list[float]) -> list[dict]:
-    """One row per distance for the replays under ``replay_dir``."""
-    tally = {d: collections.Counter() for d in distances}
-    onsets: dict[float, list[float]] = {d: [] for d in distances}
+def _replays(replay_dir: Path, lab: dict, dt: float, settle: dict) -> Iterator[tuple]:
+    """(row, traces, eq. 23 labels, usable interval) of every replay under ``replay_dir`` that
+    neither diverged nor was rejected by the depth rule, with the settle rule ``settle``."""
     for table_path in sorted(replay_dir.glob("*/replays_*.parquet")):
         traces = table_path.with_name(table_path.name.replace("replays_", "traces_"))
         table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
@@ -79,23 +79,31 @@ def protocol_rows(replay_dir: Path, lab: dict, dt: float, distances: list[float]
                 tr = npz.grasp(row["grasp_id"], ("velocity", "min_distance", "position"))
                 speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
                 dist = tr["min_distance"].astype(np.float64)
-                ui = usable_interval(speed, dist, dt, lab["settle"], lab["contact_loss_s"])
-                s, e = ui.settle_index, ui.contact_end
-                if ui.rejected or e <= s:
-                    continue
-                u = timestep_labels(speed, lab["v_slip"])
-                for d in distances:
-                    t = tally[d]
-                    t.update(confusion(u[s:e], displacement_labels(tr["position"], s, d)[s:e]))
-                    t["grasps"] += 1
-                    t["grasps moving at settle"] += int(u[s])
-                    onset = failure_onset(tr["position"], s, e, d)
-                    if onset is None:
-                        continue
-                    t["failing"] += 1
-                    t["moving_at_settle"] += int(u[s])
-                    t["late"] += int((onset - s) * dt >= STILL_BEFORE_S)
-                    onsets[d].append((onset - s) * dt)
+                ui = usable_interval(speed, dist, dt, settle, lab["contact_loss_s"])
+                if not ui.rejected:
+                    yield row, tr, timestep_labels(speed, lab["v_slip"]), ui
+
+
+def protocol_rows(replay_dir: Path, lab: dict, dt: float, distances: list[float]) -> list[dict]:
+    """One row per distance for the replays under ``replay_dir``."""
+    tally = {d: collections.Counter() for d in distances}
+    onsets: dict[float, list[float]] = {d: [] for d in distances}
+    for _, tr, u, ui in _replays(replay_dir, lab, dt, lab["settle"]):
+        s, e = ui.settle_index, ui.contact_end
+        if e <= s:
+            continue
+        for d in distances:
+            t = tally[d]
+            t.update(confusion(u[s:e], displacement_labels(tr["position"], s, d)[s:e]))
+            t["grasps"] += 1
+            t["grasps moving at settle"] += int(u[s])
+            onset = failure_onset(tr["position"], s, e, d)
+            if onset is None:
+                continue
+            t["failing"] += 1
+            t["moving_at_settle"] += int(u[s])
+            t["late"] += int((onset - s) * dt >= STILL_BEFORE_S)
+            onsets[d].append((onset - s) * dt)
     rows = []
     for d in distances:
         t = tally[d]
@@ -130,29 +138,17 @@ def window_rows(replay_dir: Path, lab: dict, dt: float, settle_speeds: list[floa
     for v in settle_speeds:
         settle = {**lab["settle"], "speed_max": v}
         c: collections.Counter = collections.Counter()
-        for table_path in sorted(replay_dir.glob("*/replays_*.parquet")):
-            traces = table_path.with_name(table_path.name.replace("replays_", "traces_"))
-            table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
-            with TraceFile(traces.with_suffix(".npz")) as npz:
-                for row in table.iter_rows(named=True):
-                    tr = npz.grasp(row["grasp_id"], ("velocity", "min_distance"))
-                    speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
-                    dist = tr["min_distance"].astype(np.float64)
-                    ui = usable_interval(speed, dist, dt, settle, lab["contact_loss_s"])
-                    if ui.rejected:
-                        continue
-                    rng = grasp_rng(42, row["object"], int(row["grasp_id"]))
-                    starts = window_starts(ui.settle_index, ui.contact_end, w, o, h,
-                                           int(lab["windows_per_grasp"]), rng)  # fmt: skip
-                    if not len(starts):
-                        continue
-                    u = timestep_labels(speed, lab["v_slip"])
-                    _, y = predictive_labels(u, starts, ui.contact_end, w, o, h,
-                                             lab["label_low"], lab["label_high"])  # fmt: skip
-                    still = still_windows(u, starts, w) & (y >= 0)
-                    c.update(grasps=1, windows=int((y >= 0).sum()), unstable=int((y == 1).sum()),
-                             still=int(still.sum()),
-                             still_unstable=int((still & (y == 1)).sum()))  # fmt: skip
+        for row, _, u, ui in _replays(replay_dir, lab, dt, settle):
+            rng = grasp_rng(42, row["object"], int(row["grasp_id"]))
+            starts = window_starts(ui.settle_index, ui.contact_end, w, o, h,
+                                   int(lab["windows_per_grasp"]), rng)  # fmt: skip
+            if not len(starts):
+                continue
+            _, y = predictive_labels(u, starts, ui.contact_end, w, o, h,
+                                     lab["label_low"], lab["label_high"])  # fmt: skip
+            still = still_windows(u, starts, w) & (y >= 0)
+            c.update(grasps=1, windows=int((y >= 0).sum()), unstable=int((y == 1).sum()),
+                     still=int(still.sum()), still_unstable=int((still & (y == 1)).sum()))
         rows.append({"v_settle [mm/s]": 1000 * v, "usable grasps": c["grasps"],
                      "windows": c["windows"], "unstable": c["unstable"], "still now": c["still"],
                      "still now, unstable": c["still_unstable"]})  # fmt: skip
