@@ -14,8 +14,10 @@ settling. A second table per protocol gives, for each settle speed (eq. 20's v_s
 and others: 1.2 mm/s makes "settled" and eq. 23's "stable" the same), the usable grasps, the
 baseline task's labelled windows (eq. 26 starts drawn as the labelling stage draws them, seed 42)
 and their unstable ones, and how many are still now (no unstable step while observed) and of those
-unstable: the windows on which an early warning can be measured at all. Uses the repository's
-default labelling config (as label_preview.py).
+unstable: the windows on which an early warning can be measured at all. When the replays record
+contact slip (graspstab.replay.slip), a third table gives, per slip speed (``--slip-mm-s``), eq.
+23's labels against the ``contact_slip`` source's (graspstab.labels.sources). Uses the
+repository's default labelling config (as label_preview.py).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import yaml
 
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.label_windows import grasp_rng
+from graspstab.labels.sources import unstable_steps
 from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
 from graspstab.replay.traces import TraceFile
 
@@ -68,15 +71,17 @@ def kappa(c: dict[str, int]) -> float:
     return float("nan") if chance == 1 else (agree - chance) / (1 - chance)
 
 
-def _replays(replay_dir: Path, lab: dict, dt: float, settle: dict) -> Iterator[tuple]:
+def _replays(replay_dir: Path, lab: dict, dt: float, settle: dict,
+             extra: tuple[str, ...] = ()) -> Iterator[tuple]:  # fmt: skip
     """(row, traces, eq. 23 labels, usable interval) of every replay under ``replay_dir`` that
-    neither diverged nor was rejected by the depth rule, with the settle rule ``settle``."""
+    neither diverged nor was rejected by the depth rule, with the settle rule ``settle`` (and
+    the ``extra`` channels)."""
     for table_path in sorted(replay_dir.glob("*/replays_*.parquet")):
         traces = table_path.with_name(table_path.name.replace("replays_", "traces_"))
         table = pl.read_parquet(table_path).filter(~pl.col("diverged"))
         with TraceFile(traces.with_suffix(".npz")) as npz:
             for row in table.iter_rows(named=True):
-                tr = npz.grasp(row["grasp_id"], ("velocity", "min_distance", "position"))
+                tr = npz.grasp(row["grasp_id"], ("velocity", "min_distance", "position", *extra))
                 speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
                 dist = tr["min_distance"].astype(np.float64)
                 ui = usable_interval(speed, dist, dt, settle, lab["contact_loss_s"])
@@ -123,6 +128,42 @@ def protocol_rows(replay_dir: Path, lab: dict, dt: float, distances: list[float]
     return rows
 
 
+def records_slip(replay_dir: Path) -> bool:
+    """Whether the replays under ``replay_dir`` record contact slip (replays before it did not)."""
+    first = next(iter(sorted(replay_dir.glob("*/traces_*.npz"))), None)
+    if first is None:
+        return False
+    with np.load(first) as npz:
+        return any(name.endswith("_tip_slip") for name in npz.files)
+
+
+def slip_rows(replay_dir: Path, lab: dict, dt: float, speeds: list[float]) -> list[dict]:
+    """One row per slip speed: eq. 23's timestep labels against the contact_slip source's over
+    every usable interval, and the share of eq. 23's unstable steps with no contact sliding."""
+    tally = {v: collections.Counter() for v in speeds}
+    for _, tr, u, ui in _replays(replay_dir, lab, dt, lab["settle"], ("tip_slip", "link_slip")):
+        s, e = ui.settle_index, ui.contact_end
+        if e <= s:
+            continue
+        for v in speeds:
+            slip = unstable_steps(tr, {**lab, "source": "contact_slip", "slip_speed": v}, s)
+            tally[v].update(confusion(u[s:e], slip[s:e]))
+    rows = []
+    for v in speeds:
+        c = {k: tally[v][k] for k in ("both", "first_only", "second_only", "neither")}
+        n = sum(c.values())
+        moving = c["both"] + c["first_only"]
+        rows.append({
+            "slip [mm/s]": 1000 * v, "steps": n,
+            "eq23 unstable": moving / n if n else float("nan"),
+            "contact slip": (c["both"] + c["second_only"]) / n if n else float("nan"),
+            "agreement": (c["both"] + c["neither"]) / n if n else float("nan"),
+            "kappa": kappa(c),
+            "eq23 unstable, no slip": c["first_only"] / moving if moving else float("nan"),
+        })  # fmt: skip
+    return rows
+
+
 def still_windows(u: np.ndarray, starts: np.ndarray, w: int) -> np.ndarray:
     """Whether each window [s, s + W) has no unstable step (eq. 23): still now."""
     csum = np.concatenate([[0], np.cumsum(np.asarray(u, dtype=np.int64))])
@@ -162,6 +203,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--distances-mm", type=float, nargs="+", default=[2.0, 5.0, 10.0])
     ap.add_argument("--settle-mm-s", type=float, nargs="+", default=[5.0, 1.2],
                     help="settle speeds (eq. 20's v_settle) for the windows table")
+    ap.add_argument("--slip-mm-s", type=float, nargs="+", default=[1.2, 5.0, 10.0],
+                    help="contact slip speeds for the contact_slip table")
     args = ap.parse_args(argv)
     lab = yaml.safe_load((CONFIG / "labels" / "default.yaml").read_text())
     dt = yaml.safe_load((CONFIG / "replay" / "default.yaml").read_text())["timestep"]
@@ -179,6 +222,9 @@ def main(argv: list[str] | None = None) -> None:
         print(pl.DataFrame(protocol_rows(folder, lab, dt, distances)))
         settle = [v / 1000 for v in args.settle_mm_s]
         print(pl.DataFrame(window_rows(folder, lab, dt, settle)))
+        if records_slip(folder):
+            slips = [v / 1000 for v in args.slip_mm_s]
+            print(pl.DataFrame(slip_rows(folder, lab, dt, slips)))
 
 
 if __name__ == "__main__":

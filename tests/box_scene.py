@@ -44,8 +44,8 @@ def two_finger_box(
     </body>
   </worldbody>
   <actuator>
-    <position joint="slide_a" kp="{kp}" forcerange="-{force_limit} {force_limit}"/>
-    <position joint="slide_b" kp="{kp}" forcerange="-{force_limit} {force_limit}"/>
+    <position name="act_a" joint="slide_a" kp="{kp}" forcerange="-{force_limit} {force_limit}"/>
+    <position name="act_b" joint="slide_b" kp="{kp}" forcerange="-{force_limit} {force_limit}"/>
   </actuator>
 </mujoco>
 """

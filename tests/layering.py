@@ -108,11 +108,13 @@ STAGES: tuple[Stage, ...] = (
     ),
     _stage(
         "labels",
-        "usable interval, eq. 23 labels, the usable replays (`labels/replays.py`), windows, "
-        "datasets and their format (`labels/dataset.py`), same-end trims, the input sets, the "
-        "grasp funnel (3.3, 3.5.4)",
+        "usable interval, eq. 23 labels and the other label sources (`labels/sources.py`), the "
+        "usable replays (`labels/replays.py`), windows, datasets and their format "
+        "(`labels/dataset.py`), same-end trims, the input sets, the grasp funnel, the failure "
+        "anatomy (3.3, 3.5.4)",
         "replays, grasp summaries",
-        "`results/datasets/...`, `results/report/funnel.parquet`",
+        "`results/datasets/...`, `results/report/funnel.parquet`, "
+        "`results/replay/anatomy.{parquet,json}`",
         "common hand replay",
     ),
     _stage(
@@ -201,6 +203,7 @@ ENTRY_MODULES: frozenset[str] = frozenset({
     "graspstab.replay.outcomes",             # summarise_replays
     "graspstab.labels.build_datasets",       # label_windows, trim_sweep_window
     "graspstab.labels.funnel",               # summarise_funnel
+    "graspstab.labels.summarise_anatomy",    # summarise_anatomy
     "graspstab.labels.input_sets",           # label_input_set
     "graspstab.labels.figure",               # plot_replay, plot_window
     "graspstab.labels.speed_figure",         # plot_unstable_speeds

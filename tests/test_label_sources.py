@@ -47,3 +47,34 @@ def test_still_windows_need_every_observed_step_below_v_slip() -> None:
     # windows [0, 5), [3, 8) holds step 7, [8, 13), [12, 17)
     assert ls.still_windows(u, starts, 5).tolist() == [True, False, True, True]
     assert ls.still_windows(u, np.array([7]), 1).tolist() == [False]
+
+
+def test_slip_rows_count_eq23_steps_without_contact_slip(tmp_path) -> None:
+    """A replay still for 1 s, then moving at 3 mm/s with its fingertip contacts sliding at
+    2 mm/s for 1 s, then at 20 mm/s with them sliding at 20 mm/s: at a 5 mm/s slip speed the
+    first moving second is eq. 23 unstable with no contact slip."""
+    import polars as pl
+    import yaml
+
+    from graspstab.common.io import save_npz
+    from graspstab.replay.traces import trace_key
+
+    dt, n = 0.0005, 6000
+    vel = np.zeros((n, 3))
+    vel[2000:4000, 0], vel[4000:, 0] = 0.003, 0.02
+    tip = np.zeros((n, 5))
+    tip[2000:4000, 1], tip[4000:, 1] = 0.002, 0.02
+    tr = {"velocity": vel, "position": np.cumsum(vel, axis=0) * dt,
+          "min_distance": np.full(n, -0.001), "tip_slip": tip, "link_slip": np.zeros(n)}
+    folder = tmp_path / "replay" / "obj"
+    folder.mkdir(parents=True)
+    pl.DataFrame({"grasp_id": [0], "object": ["obj"], "diverged": [False]}).write_parquet(
+        folder / "replays_0.parquet")  # fmt: skip
+    save_npz(folder / "traces_0.npz", **{trace_key(0, c): v for c, v in tr.items()})
+    lab = yaml.safe_load((REPO / "config" / "labels" / "default.yaml").read_text())
+    assert ls.records_slip(tmp_path / "replay")
+    row = ls.slip_rows(tmp_path / "replay", lab, dt, [0.005])[0]
+    assert row["steps"] == n  # settled at step 0, in contact throughout
+    assert row["eq23 unstable"] == pytest.approx(4000 / n)
+    assert row["contact slip"] == pytest.approx(2000 / n)
+    assert row["eq23 unstable, no slip"] == pytest.approx(0.5)

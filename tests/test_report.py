@@ -29,6 +29,7 @@ from graspstab.common.io import read_json, write_json, write_parquet  # noqa: E4
 from graspstab.config import load_config  # noqa: E402
 from graspstab.evaluation import aggregate, studies  # noqa: E402
 from graspstab.figures.presentation import LEARNING_FIGURES  # noqa: E402
+from graspstab.labels.anatomy import summarise  # noqa: E402
 from graspstab.labels.funnel import funnel, summarise_funnel  # noqa: E402
 from graspstab.metrics.classification import (  # noqa: E402
     binary_metrics,
@@ -553,6 +554,14 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
             bench[rule] = [_bench(r / "benchmarks" / rule / "x.tsv", 1.0, "100")]
     config = load_config(REPO / "config", SCHEMA, check_files=False)
     monitor = _monitor_artefacts(r / "monitor", figs)
+    anatomy_rows = [{"outcome": "held", "type": None, "onset_s": float("nan"),
+                     "still_window": False, "moving_at_settle": False},
+                    {"outcome": "failed", "type": "fingertip_slip", "onset_s": 1.5,
+                     "still_window": True, "moving_at_settle": False}]  # fmt: skip
+    write_json(r / "replay" / "anatomy.json", {"protocol": "gravity", **summarise(anatomy_rows),
+                                               "rules": dict(config["labels"]["anatomy"])})
+    anatomy = {"reference_summary": r / "replay" / "anatomy.json",
+               "reference_figure": _png(r / "figures" / "anatomy.png", 40)}
     return {
         "config": config, "figures": figs, "object_meta": metas,
         "hand_json": r / "hand" / "hand.json", "benchmark_files": bench["preprocess_object"],
@@ -563,6 +572,7 @@ def _synthetic_results(root: Path, graphs: dict[str, Path]) -> dict[str, Any]:
         "learning": study_artefacts(r), "learning_figures": learning, "rule_benchmarks": bench,
         "rulegraph": graphs["rulegraph"], "jobgraph": graphs["dag"],
         "speeds_summary": r / "datasets" / "speeds.json", "monitor": monitor,
+        "anatomy": anatomy,
     }  # fmt: skip
 
 
@@ -608,15 +618,16 @@ def test_report_has_every_section_and_decodable_images(report_html: Path) -> Non
     assert order == sorted(order)  # contents, headline and DAG overview come first
     images = _images(html)
     # 8 stage figures + the rule graph (+ 11 learning figures, all present in the synthetic tree),
-    # + the monitor's two, + in the toy run (creep-free enabled) the two speed figures of "Two
-    # protocols side by side" and the monitor's two under the ramp, + in the toy run the sensor
-    # robustness curves
+    # + the monitor's two, + the failure anatomy's, + in the toy run (creep-free enabled) the two
+    # speed figures of "Two protocols side by side", the monitor's two under the ramp and the
+    # ramp's failure anatomy, + in the toy run the sensor robustness curves
     side_by_side = "This run has no creep-free benchmark" not in html
     assert side_by_side == ('id="protocols-speeds-ramp"' in html)
     assert side_by_side == ('id="monitor-timeline-ramp"' in html)
     sensing = "This run has no sensor-robustness study" not in html
     assert sensing == ('id="sensing-curves"' in html) and 'id="sensing"' in html
-    assert len(images) == 23 + 4 * side_by_side + sensing
+    assert side_by_side == ('id="anatomy-figure-creep-free"' in html)
+    assert len(images) == 24 + 5 * side_by_side + sensing
     for data in images:
         with Image.open(io.BytesIO(data)) as img:
             img.load()

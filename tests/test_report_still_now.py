@@ -302,7 +302,8 @@ def _benchmark(root: Path, name: str, still: bool, test_still: dict | None = Non
                         root / "outcomes.parquet", studies, sweep_windows_s=(0.01,))
 
 
-RAMP = {"start_s": 1.0, "rate": 0.5, "ceiling": 3.0, "directions": "gravity", "path": "ramp"}
+RAMP = {"protocol": "ramp", "ramp": {"start_s": 1.0, "rate": 0.5, "ceiling": 3.0,
+                                     "directions": "gravity", "path": "ramp"}}  # fmt: skip
 
 
 def test_two_protocols_side_by_side_still_now(tmp_path: Path) -> None:

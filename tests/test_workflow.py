@@ -203,8 +203,9 @@ def test_report_is_self_contained(run):
     images = re.findall(r'src="data:image/png;base64,([^"]+)"', html)
     # objects, hand x2, pre-grasp, gallery, histograms, replay, speeds, window + 11 learning
     # figures + the rule graph + the two speed figures of "Two protocols side by side" + the
-    # monitor's two figures under each protocol + the sensor-robustness curves
-    assert len(images) == 9 + 11 + 1 + 2 + 2 + 2 + 1
+    # monitor's two figures under each protocol + the sensor-robustness curves + the failure
+    # anatomy under each protocol
+    assert len(images) == 9 + 11 + 1 + 2 + 2 + 2 + 1 + 2
     for data in images:
         assert base64.b64decode(data)[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -204,6 +204,16 @@ def creep_free_replay():
     return protocols.creep_free_replay(config)
 
 
+def creep_free_labels():
+    """The creep-free benchmark's labelling rules (replay.protocols.creep_free_labels)."""
+    return protocols.creep_free_labels(config)
+
+
+def creep_free_dataset_params(window_s):
+    """dataset_params of the creep-free benchmark: its own labelling rules."""
+    return {**dataset_params(window_s), "labels": creep_free_labels()}
+
+
 def creep_free_sweep_ms():
     """The creep-free sweep's window lengths in whole milliseconds."""
     return [ms_of(w) for w in config["creep_free"]["sweep_windows_s"]]

@@ -36,12 +36,35 @@ use rule summarise_replays as summarise_replays_creep_free with:
         "results/benchmarks/summarise_replays_creep_free/outcomes.tsv"
 
 
+use rule summarise_anatomy as summarise_anatomy_creep_free with:
+    input:
+        tables=replay_outputs("replays", CF),
+        traces=replay_outputs("traces", CF),
+    output:
+        table=f"{CF}/replay/anatomy.parquet",
+        summary=f"{CF}/replay/anatomy.json",
+        figure="results/figures/creep_free/anatomy.png",
+    params:
+        dataset=creep_free_dataset_params(config["labels"]["window_s"]),
+        protocol=creep_free_replay()["protocol"],
+    log:
+        "results/logs/summarise_anatomy_creep_free/anatomy.log",
+    benchmark:
+        "results/benchmarks/summarise_anatomy_creep_free/anatomy.tsv"
+
+
+ANATOMY_ARTEFACTS["creep_free_summary"] = rules.summarise_anatomy_creep_free.output.summary
+ANATOMY_ARTEFACTS["creep_free_figure"] = rules.summarise_anatomy_creep_free.output.figure
+
+
 use rule label_windows as label_windows_creep_free with:
     input:
         tables=replay_outputs("replays", CF),
         traces=replay_outputs("traces", CF),
     output:
         **{Path(n).stem: f"{CF}/datasets/baseline/{n}" for n in DATASET_FILES},
+    params:
+        dataset=creep_free_dataset_params(config["labels"]["window_s"]),
     log:
         "results/logs/label_windows_creep_free/baseline.log",
     benchmark:
@@ -55,7 +78,7 @@ use rule label_sweep_reference as label_sweep_reference_creep_free with:
     output:
         **{Path(n).stem: f"{CF}/datasets/sweep/reference/{n}" for n in DATASET_FILES},
     params:
-        dataset=dataset_params(max(config["creep_free"]["sweep_windows_s"])),
+        dataset=creep_free_dataset_params(max(config["creep_free"]["sweep_windows_s"])),
     log:
         "results/logs/label_sweep_reference_creep_free/reference.log",
     benchmark:
@@ -83,7 +106,7 @@ use rule plot_unstable_speeds as plot_unstable_speeds_creep_free with:
         figure="results/figures/creep_free/unstable_speeds.png",
     params:
         contact=config["creep_free"]["contact"],
-        labels=config["labels"],
+        labels=creep_free_labels(),
         dt=config["replay"]["timestep"],
     log:
         "results/logs/plot_unstable_speeds_creep_free/speeds.log",
@@ -169,6 +192,12 @@ use rule evaluate_monitor as evaluate_monitor_creep_free with:
         episodes=f"{CF}/monitor/episodes.parquet",
         summary=f"{CF}/monitor/summary.json",
         timeline=f"{CF}/monitor/timeline.npz",
+    params:
+        splits=object_splits(),
+        labels=creep_free_labels(),
+        dt=config["replay"]["timestep"],
+        monitor=config["monitor"],
+        threshold=config["train"]["threshold"],
     log:
         "results/logs/evaluate_monitor_creep_free/monitor.log",
     benchmark:

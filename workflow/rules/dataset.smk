@@ -26,6 +26,40 @@ rule label_windows:
         "../scripts/label_windows.py"
 
 
+# Failure anatomy (docs/protocols.md "Failure anatomy"): when and how each usable grasp fails after
+# settling, from the replay's contact slip, servo forces and spin: the table and summary the
+# report's anatomy section reads.
+rule summarise_anatomy:
+    input:
+        tables=replay_outputs("replays"),
+        traces=replay_outputs("traces"),
+    output:
+        table="results/replay/anatomy.parquet",
+        summary="results/replay/anatomy.json",
+        figure="results/figures/anatomy.png",
+    params:
+        dataset=dataset_params(config["labels"]["window_s"]),
+        protocol=config["replay"]["protocol"],
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=30,
+    log:
+        "results/logs/summarise_anatomy/anatomy.log",
+    benchmark:
+        "results/benchmarks/summarise_anatomy/anatomy.tsv"
+    script:
+        "../scripts/summarise_anatomy.py"
+
+
+# The anatomy summaries and figures the report reads, named <protocol>_<artefact> (creep_free.smk
+# adds the benchmark's).
+ANATOMY_ARTEFACTS = {
+    "reference_summary": rules.summarise_anatomy.output.summary,
+    "reference_figure": rules.summarise_anatomy.output.figure,
+}
+
+
 rule label_sweep_reference:
     input:
         tables=replay_outputs("replays"),

@@ -127,6 +127,8 @@ rule report:
         **{f"audit_{k}": v for k, v in AUDIT_ARTEFACTS.items()},
         # the k-fold study's artefacts when it runs, named crossval_<protocol>_<artefact>
         **{f"crossval_{k}": v for k, v in CROSSVAL_ARTEFACTS.items()},
+        # each protocol's failure anatomy, named anatomy_<protocol>_<artefact>
+        **{f"anatomy_{k}": v for k, v in ANATOMY_ARTEFACTS.items()},
         # the closed loop's summaries when it runs, named closed_loop_<protocol>_<artefact>
         **{f"closed_loop_{k}": v for k, v in CLOSED_LOOP_ARTEFACTS.items()},
         rulegraph=rules.rulegraph.output.rules,

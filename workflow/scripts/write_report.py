@@ -16,6 +16,7 @@ SENSING = "sensing_"
 AUDIT = "audit_"
 CROSSVAL = "crossval_"
 CLOSED_LOOP = "closed_loop_"
+ANATOMY = "anatomy_"
 benchmarks = {
     name.removeprefix(PREFIX): [Path(p) for p in ([files] if isinstance(files, str) else files)]
     for name, files in sm.input.items()
@@ -64,4 +65,5 @@ with job(sm):
         audit=prefixed(AUDIT),
         crossval=prefixed(CROSSVAL),
         closed_loop=prefixed(CLOSED_LOOP),
+        anatomy={k: Path(v) for k, v in prefixed(ANATOMY).items()},
     )

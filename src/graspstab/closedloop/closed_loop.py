@@ -27,7 +27,7 @@ from graspstab.closedloop.reflex import GripReflex, ReflexParams
 from graspstab.closedloop.sweep import Variant, default_variant
 from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.labels.interval import steps_of
-from graspstab.replay.grasp_setup import deep_stop, grasp_load
+from graspstab.replay.grasp_setup import deep_stop, grasp_load, slip_every
 from graspstab.replay.protocols import creep_free_replay, replay_params
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp
@@ -48,8 +48,9 @@ def protocol_params(config: dict[str, Any], protocol: str) -> dict[str, Any]:
 
 
 def with_ramp_path(params: dict[str, Any], path: str | None) -> dict[str, Any]:
-    """The replay params with the load ramp's path replaced (unchanged under gravity or None)."""
-    if path is None or params["protocol"] == "gravity":
+    """The replay params with the load ramp's path replaced (unchanged unless the protocol is the
+    ramp: gravity has no load, and the perturbation's load is open-loop by design)."""
+    if path is None or params["protocol"] != "ramp":
         return params
     return {**params, "ramp": {**params["ramp"], "path": path}}
 
@@ -102,7 +103,7 @@ def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_i
     return run_replay(
         scene.model, data, scene.layout, int(params["steps"]), int(params["chunk_steps"]),
         max(1, round(float(params["stop_after_loss_s"]) / dt)), load, scene.object_body,
-        deep_stop(params), controller=controller,
+        deep_stop(params), controller=controller, slip_every=slip_every(params),
     )  # fmt: skip
 
 

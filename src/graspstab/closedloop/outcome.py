@@ -30,7 +30,8 @@ import numpy as np
 
 from graspstab.common.runs import earliest_run
 from graspstab.labels.interval import steps_of, usable_interval
-from graspstab.labels.windows import step_counts, timestep_labels
+from graspstab.labels.sources import unstable_steps
+from graspstab.labels.windows import step_counts
 from graspstab.monitor.episodes import failure_onset
 from graspstab.replay.run import REFLEX
 
@@ -70,7 +71,7 @@ def baseline_of(traces: dict[str, np.ndarray], labels: dict[str, Any], dt: float
     usable = ui.rejected is None and ui.contact_end > ui.settle_index
     onset = None
     if usable:
-        u = timestep_labels(speed[: ui.contact_end], labels["v_slip"])
+        u = unstable_steps(traces, labels, ui.settle_index)[: ui.contact_end]
         onset = failure_onset(u, ui.settle_index, ui.contact_end, horizon_steps(labels, dt),
                               contact_lost=ui.contact_end < len(dist))  # fmt: skip
     return Baseline(usable, ui.settle_index, ui.contact_end, onset,

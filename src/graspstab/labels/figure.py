@@ -14,7 +14,8 @@ from graspstab.common.io import read_parquet
 from graspstab.common.plotting import no_data, plt, save
 from graspstab.hand.names import FINGERS
 from graspstab.labels.interval import usable_interval
-from graspstab.labels.windows import step_counts, timestep_labels
+from graspstab.labels.sources import source_channels, unstable_steps
+from graspstab.labels.windows import step_counts
 from graspstab.replay.figure import example_traces, plot_replay_trace
 from graspstab.replay.traces import read_traces
 
@@ -39,11 +40,11 @@ def plot_labelled_replay(
 ) -> int:  # fmt: skip
     """The replay trace figure of one shard's example grasp (graspstab.replay.figure), its
     usable interval shaded red where u_t = 1 and green where u_t = 0; returns its grasp id."""
-    obj, gid, traces = example_traces(summary_path, traces_path)
+    obj, gid, traces = example_traces(summary_path, traces_path, source_channels(labels))
     speed = np.linalg.norm(traces["velocity"].astype(np.float64), axis=1)
     ui = usable_interval(speed, traces["min_distance"].astype(np.float64), dt,
                          labels["settle"], labels["contact_loss_s"])  # fmt: skip
-    u = timestep_labels(speed, labels["v_slip"])
+    u = unstable_steps(traces, labels, ui.settle_index)
 
     def shade(axes: list[Any], t: np.ndarray) -> None:
         shade_periods(axes, t, u, ui.settle_index, min(ui.contact_end, len(t)))
@@ -96,11 +97,13 @@ def plot_window(
     files = trace_files_by_shard(tables, traces)
     if (obj, int(shard)) not in files:
         raise KeyError(f"{index_path}: window of {obj} shard {shard} has no declared trace file")
-    tr = read_traces(files[(obj, int(shard))], gid, ("velocity", "min_distance", "normal", "shear"))
+    wanted = dict.fromkeys(("velocity", "min_distance", "normal", "shear",
+                            *source_channels(labels)))  # fmt: skip
+    tr = read_traces(files[(obj, int(shard))], gid, tuple(wanted))
     speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
     ui = usable_interval(speed, tr["min_distance"].astype(np.float64), dt, labels["settle"],
                          labels["contact_loss_s"])  # fmt: skip
-    u = timestep_labels(speed, labels["v_slip"])
+    u = unstable_steps(tr, labels, ui.settle_index)
     t = np.arange(len(speed)) * dt
     s = sample["start"]
     marks = [s, s + w, s + w + o, min(s + w + o + h, ui.contact_end)]

@@ -25,10 +25,18 @@ import numpy as np
 import polars as pl
 
 from graspstab.common.io import save_npy, write_json, write_parquet
+from graspstab.labels.anatomy import failure
 from graspstab.labels.dataset import CHANNELS, MOTION, normalisation
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.replays import replay_grasps
-from graspstab.labels.windows import predictive_labels, step_counts, timestep_labels, window_starts
+from graspstab.labels.sources import source_channels, unstable_steps
+from graspstab.labels.windows import (
+    event_windows,
+    predictive_labels,
+    step_counts,
+    timestep_labels,
+    window_starts,
+)
 
 
 def grasp_rng(seed: int, object_id: str, grasp_id: int) -> np.random.Generator:
@@ -50,9 +58,16 @@ def grasp_windows(
     empty = np.zeros(0, dtype=np.int64)
     if ui.rejected:
         return empty, np.zeros(0), np.zeros(0, np.int8), ui.rejected
+    rng = grasp_rng(seed, object_id, grasp_id)
+    if labels.get("form", "share") == "event":
+        failed = failure(traces, labels, dt, ui.settle_index, ui.contact_end)
+        onset = None if failed is None else failed[0]
+        starts, y = event_windows(ui.settle_index, ui.contact_end, onset, w, o, h,
+                                  int(labels["windows_per_grasp"]), rng)  # fmt: skip
+        return starts, y.astype(np.float64), y, None
     starts = window_starts(ui.settle_index, ui.contact_end, w, o, h,
-                           int(labels["windows_per_grasp"]), grasp_rng(seed, object_id, grasp_id))
-    u = timestep_labels(speed, labels["v_slip"])
+                           int(labels["windows_per_grasp"]), rng)  # fmt: skip
+    u = unstable_steps(traces, labels, ui.settle_index)
     r, y = predictive_labels(u, starts, ui.contact_end, w, o, h,
                              labels["label_low"], labels["label_high"])  # fmt: skip
     keep = y >= 0
@@ -77,7 +92,8 @@ def label_windows(
     rows: list[dict[str, Any]] = []
     chunks: list[np.ndarray] = []
     motion: list[np.ndarray] = []
-    for g in replay_grasps(replays, splits, ("velocity", "min_distance", *CHANNELS)):
+    wanted = dict.fromkeys(("velocity", "min_distance", *CHANNELS, *source_channels(labels)))
+    for g in replay_grasps(replays, splits, tuple(wanted)):
         tr = g.traces
         starts, r, y, _ = grasp_windows(tr, g.object, g.grasp_id, labels, window_s, dt, seed)
         if not len(starts):

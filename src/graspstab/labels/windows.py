@@ -65,3 +65,21 @@ def predictive_labels(
     label[r >= high] = 1
     label[r <= low] = 0
     return r, label
+
+
+def event_windows(
+    settle: int, contact_end: int, onset: int | None, w: int, o: int, h: int, count: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The event form of 3.3.3-3.3.4 (our option, ``labels.form: event``): starts and labels of
+    up to ``count`` windows. A grasp that fails (``onset``: the step its failing motion begins)
+    has its starts drawn as eq. 26 draws them, but up to ``onset - W - O`` (no window looks past
+    the onset), and a window is positive when the onset lies in its target interval
+    [s + W + O, s + W + O + H); a grasp that holds has eq. 26's starts, all negative."""
+    if onset is None:
+        starts = window_starts(settle, contact_end, w, o, h, count, rng)
+        return starts, np.zeros(len(starts), dtype=np.int8)
+    starts = window_starts(settle, onset + h, w, o, h, count, rng)  # last start onset - W - O
+    first = starts + w + o
+    label = ((first <= onset) & (onset < first + h)).astype(np.int8)
+    return starts, label

@@ -22,7 +22,7 @@ import polars as pl
 
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.replays import replay_grasps
-from graspstab.labels.windows import timestep_labels
+from graspstab.labels.sources import source_channels, unstable_steps
 from graspstab.monitor.episodes import EpisodeResult, evaluate_episode, first_scored
 from graspstab.monitor.scoring import WindowScorer
 from graspstab.monitor.stream import MonitorTrace, score_trace
@@ -57,8 +57,9 @@ def read_episodes(
 ) -> Iterator[Episode]:
     """The usable episodes of the (table, traces) pairs whose object's split is in ``keep`` (or
     only the one ``grasp``, (object, grasp id))."""
-    for g in replay_grasps(replays, splits, ("velocity", "min_distance", "normal", "shear"),
-                           keep, grasp):  # fmt: skip
+    wanted = dict.fromkeys(("velocity", "min_distance", "normal", "shear",
+                            *source_channels(dict(labels))))  # fmt: skip
+    for g in replay_grasps(replays, splits, tuple(wanted), keep, grasp):
         tr = g.traces
         speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
         dist = tr["min_distance"].astype(np.float64)
@@ -72,7 +73,7 @@ def read_episodes(
         yield Episode(
             object=g.object, grasp_id=g.grasp_id, split=g.split,
             forces=forces.astype(np.float32), speed=speed[:end],
-            u=timestep_labels(speed[:end], labels["v_slip"]), start=ui.settle_index,
+            u=unstable_steps(tr, dict(labels), ui.settle_index)[:end], start=ui.settle_index,
             end=end, contact_lost=end < len(dist),
         )  # fmt: skip
 

@@ -18,7 +18,7 @@ import polars as pl
 from graspstab.common.io import read_parquet
 from graspstab.common.plotting import plt, save
 from graspstab.hand.names import FINGERS
-from graspstab.replay.traces import read_traces
+from graspstab.replay.traces import CHANNELS, read_traces
 
 
 def pick_example(summary: pl.DataFrame) -> int:
@@ -75,12 +75,14 @@ def plot_replay_trace(
 
 
 def example_traces(
-    summary_path: str | Path, traces_path: str | Path
+    summary_path: str | Path, traces_path: str | Path, extra: tuple[str, ...] = ()
 ) -> tuple[str, int, dict[str, np.ndarray]]:
-    """:func:`pick_example`'s replay of one shard: its object, grasp id and traces."""
+    """:func:`pick_example`'s replay of one shard: its object, grasp id and traces (the
+    recorded channels and any ``extra`` ones)."""
     summary = read_parquet(summary_path)
     gid = pick_example(summary)
-    return summary["object"][0], gid, read_traces(traces_path, gid)
+    channels = tuple(dict.fromkeys((*CHANNELS, *extra)))
+    return summary["object"][0], gid, read_traces(traces_path, gid, channels)
 
 
 def plot_replay_example(

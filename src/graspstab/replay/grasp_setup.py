@@ -13,20 +13,47 @@ from graspstab.replay.ramp import RampLoad, ramp_direction, ramp_load
 from graspstab.replay.run import DeepStop
 
 
+def grasp_stream(seed: int, object_id: str, grasp_id: int) -> np.random.Generator:
+    """The random stream of one grasp's load (SeedSequence of seed, object, grasp)."""
+    return np.random.default_rng(
+        np.random.SeedSequence([int(seed), zlib.crc32(object_id.encode()), int(grasp_id)])
+    )
+
+
 def grasp_load(
     params: dict[str, Any], scene: Any, gravity_hand: np.ndarray, object_id: str, grasp_id: int
 ) -> RampLoad | None:
-    """The load ramp of one grasp (simulation frame = hand frame), or None under gravity alone
-    (3.2, the reference's protocol). The direction is drawn from the grasp's own stream."""
+    """The load of one grasp (simulation frame = hand frame), or None under gravity alone (3.2,
+    the reference's protocol): the load ramp (``ramp``) or the hidden-onset disturbance
+    (``perturb``), drawn from the grasp's own stream and never from anything the replay does."""
     if params["protocol"] == "gravity":
         return None
-    ramp = params["ramp"]
-    seq = np.random.SeedSequence([int(ramp["seed"]), zlib.crc32(object_id.encode()), grasp_id])
-    direction = ramp_direction(ramp["directions"], gravity_hand, np.random.default_rng(seq))
     weight = float(scene.model.body_subtreemass[scene.object_body]) * float(
         np.linalg.norm(gravity_hand)
     )
-    return ramp_load(ramp, direction, weight, float(params["timestep"]))
+    dt = float(params["timestep"])
+    if params["protocol"] == "perturb":
+        return perturb_load(params["perturb"], gravity_hand, weight, dt, object_id, grasp_id)
+    ramp = params["ramp"]
+    rng = grasp_stream(ramp["seed"], object_id, grasp_id)
+    direction = ramp_direction(ramp["directions"], gravity_hand, rng)
+    return ramp_load(ramp, direction, weight, dt)
+
+
+def perturb_load(
+    perturb: dict[str, Any], gravity_hand: np.ndarray, weight: float, dt: float, object_id: str,
+    grasp_id: int,
+) -> RampLoad:  # fmt: skip
+    """The hidden-onset disturbance of one grasp: still until a delay drawn uniformly from
+    ``delay_s``, then a load rising open-loop at a rate drawn uniformly from ``rate`` [m g/s] up
+    to ``ceiling`` [m g], along a direction drawn from ``directions``; direction, delay and rate
+    are drawn in that order from the grasp's stream."""
+    rng = grasp_stream(perturb["seed"], object_id, grasp_id)
+    direction = ramp_direction(perturb["directions"], gravity_hand, rng)
+    delay = float(rng.uniform(*map(float, perturb["delay_s"])))
+    rate = float(rng.uniform(*map(float, perturb["rate"])))
+    return RampLoad(direction=direction, weight=weight, dt=dt, start_s=delay, rate=rate,
+                    ceiling=float(perturb["ceiling"]), path="linear")  # fmt: skip
 
 
 def deep_stop(params: dict[str, Any]) -> DeepStop | None:
@@ -36,3 +63,8 @@ def deep_stop(params: dict[str, Any]) -> DeepStop | None:
         return None
     return DeepStop(float(rule["depth"]), max(1, round(float(rule["seconds"]) / dt)),
                     round(float(rule["after_s"]) / dt))  # fmt: skip
+
+
+def slip_every(params: dict[str, Any]) -> int:
+    """Steps between contact slip samples (``params["slip_every_s"]``, at least one step)."""
+    return max(1, round(float(params["slip_every_s"]) / float(params["timestep"])))

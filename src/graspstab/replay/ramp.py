@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 # The directions a grasp's load may take (simulation frame = hand frame, gravity rotated into it).
-DIRECTION_SETS = ("gravity", "hand_axes", "sphere")
+DIRECTION_SETS = ("gravity", "hand_axes", "gravity_axes", "sphere")
 #: How the load grows: ``linear`` to the ceiling; ``hold``: as linear until the object first
 #: slides (speed >= ``slip_speed``), then held at ``hold_fraction`` of the load it slid at;
 #: ``servo``: as linear until the first slide, then servoed on the speed (falling at ``rate`` while
@@ -39,13 +39,16 @@ def ramp_magnitude(
 
 def ramp_direction(kind: str, gravity: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """A unit load direction in the simulation frame: along ``gravity``, one of the six hand-frame
-    axes (uniformly), or uniform on the sphere."""
+    axes (uniformly), gravity or one of the six axes (seven choices, uniformly), or uniform on
+    the sphere."""
+    g = np.asarray(gravity, dtype=np.float64)
     if kind == "gravity":
-        g = np.asarray(gravity, dtype=np.float64)
         return g / np.linalg.norm(g)
-    if kind == "hand_axes":
+    if kind in ("hand_axes", "gravity_axes"):
+        k = int(rng.integers(6 if kind == "hand_axes" else 7))
+        if k == 6:
+            return g / np.linalg.norm(g)
         axis = np.zeros(3)
-        k = int(rng.integers(6))
         axis[k % 3] = 1.0 if k < 3 else -1.0
         return axis
     if kind == "sphere":

@@ -28,7 +28,8 @@ import numpy as np
 from graspstab.common.runs import earliest_run
 from graspstab.replay.ramp import CONTROL_SPEC, RampLoad, control_rows
 from graspstab.replay.sensors import SensorLayout, force_features, motion_features
-from graspstab.replay.traces import CHANNELS, LOAD
+from graspstab.replay.slip import SlipSampler
+from graspstab.replay.traces import ANATOMY, CHANNELS, LOAD
 
 # Rows of raw sensordata whose force channels are computed in one call: under the load ramp's
 # feedback a chunk is 20 steps, and per-chunk numpy overhead would rival the physics.
@@ -111,6 +112,7 @@ def run_replay(
     load_body: int = -1,
     deep_stop: DeepStop | None = None,
     controller: Controller | None = None,
+    slip_every: int = 20,
 ) -> ReplayResult:
     """Roll out ``steps`` steps from ``data``'s current state with its current controls.
 
@@ -122,7 +124,8 @@ def run_replay(
     (simulation frame, the force during step t). ``deep_stop`` (None: never) stops a replay
     the depth rule will reject. ``controller`` (None: open loop) closes the loop: its targets
     drive the actuators and it sees every chunk's forces before the next chunk runs; the
-    largest target offset it applies at each step is trace channel ``reflex``.
+    largest target offset it applies at each step is trace channel ``reflex``. The contact slip
+    channels are sampled every ``slip_every`` steps (:mod:`graspstab.replay.slip`).
     """
     if chunk < 1 or steps < 1:
         raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
@@ -131,7 +134,8 @@ def run_replay(
     control, control_spec = data.ctrl.copy()[None, None], mujoco.mjtState.mjSTATE_CTRL
     if load is not None and load_body < 0:
         raise ValueError(f"a load needs the body it acts on, got body {load_body}")
-    channels = CHANNELS if load is None else (*CHANNELS, LOAD)
+    channels = (*CHANNELS, *ANATOMY) if load is None else (*CHANNELS, *ANATOMY, LOAD)
+    slip = SlipSampler(model, layout, slip_every)
     if controller is not None:
         channels = (*channels, REFLEX)
     base = data.ctrl.copy()
@@ -166,7 +170,7 @@ def run_replay(
             control_spec = CONTROL_SPEC
             control = control_rows(model, targets if controller is not None else data.ctrl,
                                    load_body, forces)  # fmt: skip
-        _, sensordata = mujoco.rollout.rollout(
+        states, sensordata = mujoco.rollout.rollout(
             model,
             data,
             state[None],
@@ -176,6 +180,8 @@ def run_replay(
             initial_warmstart=data.qacc_warmstart.copy()[None],
         )
         rows = motion_features(sensordata[0], layout)
+        slips = slip.rows(done, state, states[0])
+        rows["tip_slip"], rows["link_slip"] = slips[:, :-1], slips[:, -1]
         if load is not None:
             rows[LOAD] = forces
             load.observe(done, np.linalg.norm(rows["velocity"], axis=1))

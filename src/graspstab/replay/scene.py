@@ -57,6 +57,7 @@ def build_replay_scene(
         hand["root_body"],
         object_body,
         int(params["contact_slots"]),
+        hand["actuator_names"],
     )
     contact = params["contact"]
     opt = spec.option
@@ -82,9 +83,10 @@ def build_replay_scene(
     model.actuator_biasprm[ctrl, 2] = -kv
     model.actuator_forcerange[ctrl] = (-float(act["forcerange"]), float(act["forcerange"]))
     joint = model.body(object_body).jntadr[0]
+    servo_weight = closing / float(act["forcerange"])  # actuator sensors in actuator_names order
     return ReplayScene(
         model=model,
-        layout=sensor_layout(model, fingers, int(params["contact_slots"])),
+        layout=sensor_layout(model, fingers, int(params["contact_slots"]), servo_weight),
         object_qpos=int(model.jnt_qposadr[joint]),
         object_body=int(model.body(object_body).id),
         finger_qpos=np.array([model.joint(j).qposadr[0] for j in hand["joint_names"]]),

@@ -10,7 +10,9 @@ sensors to the model and lets ``mujoco.rollout`` fill ``sensordata``:
   basis of the shear's two components (below);
 * one contact sensor between the whole hand (subtree of its root) and the object, reduced to the
   smallest signed distance (count, dist): d_t of 3.2, undefined when the count is 0;
-* the object's position and linear velocity (body origin = centre of mass, 3.1.1).
+* the object's position and linear velocity (body origin = centre of mass, 3.1.1);
+* the object's angular velocity and, per finger actuator, its force: what the failure anatomy
+  reads (``spin``, ``servo_load``), never a model input.
 
 :func:`features` turns a block of sensordata rows into the trace channels (the replay computes
 the force channels, :func:`force_features`, over many chunks at once): eq. (18) sums
@@ -27,7 +29,8 @@ are parallel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -51,6 +54,13 @@ class SensorLayout:
     dist_start: int  # (count, dist) of the hand-object sensor
     pos_start: int  # object position (3)
     vel_start: int  # object linear velocity (3)
+    angvel_start: int  # object angular velocity (3)
+    act_start: int  # the finger actuators' forces (one each), -1 without actuator sensors
+    # per actuator sensor: 1 / force range for the closing joints, 0 for the rest (servo_load)
+    servo_weight: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tip_bodies: tuple[int, ...] = ()  # each fingertip's body id, eq. (19) order
+    hand_bodies: tuple[int, ...] = ()  # every body of the hand's subtree
+    object_body: int = -1
 
 
 def add_replay_sensors(
@@ -59,8 +69,10 @@ def add_replay_sensors(
     hand_root: str,
     object_body: str,
     slots: int,
+    actuators: Sequence[str] = (),
 ) -> None:
-    """Add the replay's sensors to ``spec`` (names prefixed ``replay_``)."""
+    """Add the replay's sensors to ``spec`` (names prefixed ``replay_``), with one force sensor
+    per named actuator."""
     for finger, body in fingertip_bodies.items():
         spec.add_sensor(
             name=f"replay_tip_{finger}",
@@ -89,8 +101,12 @@ def add_replay_sensors(
     for name, kind in (
         ("replay_object_pos", mujoco.mjtSensor.mjSENS_FRAMEPOS),
         ("replay_object_vel", mujoco.mjtSensor.mjSENS_FRAMELINVEL),
+        ("replay_object_angvel", mujoco.mjtSensor.mjSENS_FRAMEANGVEL),
     ):
         spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_BODY, objname=object_body)
+    for i, actuator in enumerate(actuators):
+        spec.add_sensor(name=f"replay_act_{i}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=actuator)  # fmt: skip
 
 
 def finger_axes(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray]:
@@ -107,8 +123,15 @@ def finger_axes(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarra
     return distal, lateral / np.linalg.norm(lateral)
 
 
-def sensor_layout(model: mujoco.MjModel, fingers: tuple[str, ...], slots: int) -> SensorLayout:
-    """Column offsets of the sensors :func:`add_replay_sensors` added to the compiled ``model``."""
+def sensor_layout(
+    model: mujoco.MjModel,
+    fingers: tuple[str, ...],
+    slots: int,
+    servo_weight: np.ndarray | None = None,
+) -> SensorLayout:
+    """Column offsets of the sensors :func:`add_replay_sensors` added to the compiled ``model``;
+    ``servo_weight`` (per actuator sensor: 1 / force range of a closing joint, else 0; None: all
+    0) turns the actuator forces into ``servo_load``."""
 
     def start(name: str, dim: int) -> int:
         sid = model.sensor(name).id
@@ -118,6 +141,12 @@ def sensor_layout(model: mujoco.MjModel, fingers: tuple[str, ...], slots: int) -
 
     bodies = [int(model.sensor_objid[model.sensor(f"replay_quat_{f}").id]) for f in fingers]
     axes = [finger_axes(model, b) for b in bodies]
+    acts = [i for i in range(model.nsensor) if model.sensor(i).name.startswith("replay_act_")]
+    weight = np.zeros(len(acts)) if servo_weight is None else np.asarray(servo_weight, float)
+    if len(weight) != len(acts):
+        raise ValueError(f"servo_weight has {len(weight)} entries for {len(acts)} actuator sensors")
+    root = int(model.sensor_objid[model.sensor("replay_hand_dist").id])
+    hand = [b for b in range(model.nbody) if _in_subtree(model, b, root)]
     return SensorLayout(
         fingertips=tuple(fingers),
         slots=int(slots),
@@ -128,7 +157,21 @@ def sensor_layout(model: mujoco.MjModel, fingers: tuple[str, ...], slots: int) -
         dist_start=start("replay_hand_dist", 2),
         pos_start=start("replay_object_pos", 3),
         vel_start=start("replay_object_vel", 3),
+        angvel_start=start("replay_object_angvel", 3),
+        act_start=int(model.sensor_adr[acts[0]]) if acts else -1,
+        servo_weight=weight,
+        tip_bodies=tuple(bodies),
+        hand_bodies=tuple(hand),
+        object_body=int(model.sensor_objid[model.sensor("replay_object_pos").id]),
     )
+
+
+def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(model.body_parentid[body])
+    return body == root
 
 
 def rotate(quat: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -176,13 +219,21 @@ def features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarr
 
 def motion_features(sensordata: np.ndarray, layout: SensorLayout) -> dict[str, np.ndarray]:
     """``position (T, 3)``, ``velocity (T, 3)`` and ``min_distance (T,)`` (NaN without any
-    hand-object contact): what the replay's stop rules and the load ramp read every chunk."""
+    hand-object contact): what the replay's stop rules and the load ramp read every chunk; and the
+    failure anatomy's ``spin (T,)``, the object's angular speed [rad/s], and ``servo_load (T,)``,
+    the largest closing-joint actuator force as a share of its range (1: saturated)."""
     rows = np.asarray(sensordata, dtype=np.float64)
     count = rows[:, layout.dist_start]
+    k = len(layout.servo_weight)
+    servo = (
+        np.abs(rows[:, layout.act_start : layout.act_start + k]) * layout.servo_weight[None]
+    ).max(axis=1, initial=0.0) if k else np.zeros(len(rows))  # fmt: skip
     return {
         "position": rows[:, layout.pos_start : layout.pos_start + 3],
         "velocity": rows[:, layout.vel_start : layout.vel_start + 3],
         "min_distance": np.where(count > 0, rows[:, layout.dist_start + 1], np.nan),
+        "spin": np.linalg.norm(rows[:, layout.angvel_start : layout.angvel_start + 3], axis=1),
+        "servo_load": servo,
     }
 
 

@@ -21,12 +21,17 @@ from graspstab.hand.names import FINGERS
 CHANNELS = (
     "position", "velocity", "min_distance", "normal", "shear", "shear_distal", "shear_lateral",
 )  # fmt: skip
+# What the failure anatomy reads, recorded by every replay and never a model input: the object's
+# angular speed [rad/s], the largest closing-joint servo force as a share of its range (1:
+# saturated), and the contact slip speed [m/s] at each fingertip and at the other hand links
+# together (graspstab.replay.slip, sampled every replay.slip_every_s and held in between).
+ANATOMY = ("spin", "servo_load", "tip_slip", "link_slip")
 # The external force of the load-ramp protocol (object frame) [N]; absent under gravity alone.
 LOAD = "load"
 # Values per time step of each channel: 3-vectors, d_t, and one per fingertip (eq. 19's order).
 WIDTHS = {"position": 3, "velocity": 3, "min_distance": 1, LOAD: 3} | {
-    c: len(FINGERS) for c in ("normal", "shear", "shear_distal", "shear_lateral")
-}
+    c: len(FINGERS) for c in ("normal", "shear", "shear_distal", "shear_lateral", "tip_slip")
+} | {"spin": 1, "servo_load": 1, "link_slip": 1}
 # A generous bound on what one npz member adds to its data: zip headers, its name, the npy header.
 MEMBER_OVERHEAD = 512
 
@@ -68,7 +73,7 @@ def trace_bytes(grasps: int, steps: int, load: bool) -> int:
     """The largest size of a shard's trace file: ``grasps`` replays of ``steps`` float32 rows
     each, stored uncompressed. The real file is smaller (npz compression, early stops); the
     replay job checks this much free space before it simulates."""
-    channels = [*CHANNELS, LOAD] if load else list(CHANNELS)
+    channels = [*CHANNELS, *ANATOMY, *([LOAD] if load else [])]
     per_grasp = steps * sum(WIDTHS[c] for c in channels) * 4 + len(channels) * MEMBER_OVERHEAD
     return grasps * per_grasp
 

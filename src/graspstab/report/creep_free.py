@@ -197,7 +197,25 @@ def still_rows(main: Benchmark, ramp: Benchmark) -> list[list[Any]]:
     return rows
 
 
-def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[str, Any]) -> str:
+def load_sentence(replay: Mapping[str, Any]) -> str:
+    """What the creep-free benchmark's load does, from its replay params (protocol ``ramp`` or
+    ``perturb``, with the group of that name)."""
+    if replay["protocol"] == "perturb":
+        p = replay["perturb"]
+        return (f"after a still period drawn per grasp from {p['delay_s'][0]:g}-"
+                f"{p['delay_s'][1]:g} s the object also carries a force rising open-loop at a "
+                f"rate drawn from {p['rate'][0]:g}-{p['rate'][1]:g} m g per second up to "
+                f"{p['ceiling']:g} m g along {H.esc(p['directions'])} (the hidden-onset "
+                "disturbance).")  # fmt: skip
+    r = replay["ramp"]
+    return (f"after {r['start_s']:g} s the object also carries a force rising "
+            f"at {r['rate']:g} m g per second up to {r['ceiling']:g} m g along "
+            f"{H.esc(r['directions'])} (path {H.esc(r['path'])}"
+            + (f", held at {r['hold_fraction']:g} of the load at which the object first reaches "
+               f"{r['slip_speed'] * 1e3:g} mm/s" if r["path"] == "hold" else "") + ").")
+
+
+def creep_free_section(main: Benchmark, ramp: Benchmark, load: Mapping[str, Any]) -> str:
     """The section "Two protocols side by side" (anchor ``protocols``)."""
     names = [main.name, ramp.name]
     mix = [class_mix(b) for b in (main, ramp)]
@@ -234,17 +252,12 @@ def creep_free_section(main: Benchmark, ramp: Benchmark, ramp_config: Mapping[st
     still = any(_has_still(b) for b in (main, ramp))
     if still:
         rows += still_rows(main, ramp)
-    r = ramp_config
     parts = [
         H.heading(2, "protocols", "Two protocols side by side: gravity and the load ramp"),
         f'<p>The same grasps replayed twice: under {H.esc(main.name)} (the main run) and under '
-        f"{H.esc(ramp.name)}: after {r['start_s']:g} s the object also carries a force rising "
-        f"at {r['rate']:g} m g per second up to {r['ceiling']:g} m g along "
-        f"{H.esc(r['directions'])} (path {H.esc(r['path'])}"
-        + (f", held at {r['hold_fraction']:g} of the load at which the object first reaches "
-           f"{r['slip_speed'] * 1e3:g} mm/s" if r["path"] == "hold" else "")
-        + "). Labels, models, training, thresholds and the proxy are the same; under the strict "
-        "contact model a held object does not creep, so an unstable label means real slip.</p>",
+        f"{H.esc(ramp.name)}: {load_sentence(load)} Models, training, thresholds and the "
+        "proxy are the same; under the strict contact model a held object does not creep, so an "
+        "unstable label means real slip.</p>",
         H.table(head, rows, caption=(
             "Class mix, replay outcomes, creep and headline metrics (mean ± std over seeds; a "
             "figure without ± is one seed, e.g. creep_free.seeds) of the two protocols")),

@@ -40,12 +40,14 @@ def protocols_parts(
         sweep_windows_s=[float(w) for w in config["sweep"]["windows_s"]],
     )  # fmt: skip
     cf = config["creep_free"]
+    load = "hidden-onset disturbance" if cf["load"] == "perturb" else "load ramp"
     ramp = Benchmark(
-        name=f"load ramp ({cf['contact']['name']} contact model)",
+        name=f"{load} ({cf['contact']['name']} contact model)",
         dataset=Path(creep_free["dataset"]), speeds=Path(creep_free["speeds"]),
         replay_outcomes=Path(creep_free["replay_outcomes"]),
         studies=StudyArtefacts.from_inputs(creep_free, prefix="study_"),
         speeds_figure=Path(creep_free["speeds_figure"]),
         sweep_windows_s=[float(w) for w in cf["sweep_windows_s"]],
     )  # fmt: skip
-    return [creep_free_section(main, ramp, config["replay"]["ramp"])]
+    replay = {"protocol": cf["load"], cf["load"]: config["replay"][cf["load"]]}
+    return [creep_free_section(main, ramp, replay)]

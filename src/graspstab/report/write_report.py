@@ -1,10 +1,11 @@
 """Write ``results/report.html``: one self-contained page covering what the pipeline has built.
 
 Assembly only: this module reads the inputs the rule hands over, orders the sections and writes the
-page. Each section is rendered by its own module (objects_hand, synthesis, replay, datasets,
-pipeline, learning, monitor, sensing, crossval, closed_loop, protocols, provenance_section), and
-every number it shows is read from a summary a job wrote (docs/report.md); the only arithmetic on
-measurements is over Snakemake's benchmark files, which are timings, not data.
+page. Each section is rendered by its own module (objects_hand, synthesis, replay, anatomy,
+datasets, pipeline, learning, monitor, sensing, crossval, closed_loop, protocols,
+provenance_section), and every number it shows is read from a summary a job wrote
+(docs/report.md); the only arithmetic on measurements is over Snakemake's benchmark files, which
+are timings, not data.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from graspstab.common.io import read_json, write_text
 from graspstab.figures.artefacts import StudyArtefacts
 from graspstab.report import dag
 from graspstab.report import html as H
+from graspstab.report.anatomy import anatomy_parts
 from graspstab.report.closed_loop import closed_loop_section
 from graspstab.report.crossval import crossval_section
 from graspstab.report.datasets import dataset_parts
@@ -40,7 +42,7 @@ log = logging.getLogger(__name__)
 SECTION_IDS = (
     "contents", "headline", "pipeline", "objects", "hand", "hand-candidates", "hand-capsules",
     "synthesis", "pregrasp", "grasp-gallery", "replay", "replay-trace", "contact-model",
-    "unstable-speeds", "datasets", "window",
+    "unstable-speeds", "anatomy", "anatomy-figure", "datasets", "window",
     "dataset-counts", "learning", "tuning", "baseline-configurations", "metrics", "confusion",
     "per-object", "split-robustness", "sweep", "latency", "operating-points", "errors",
     "threshold-transfer", "reliability", "proxy", "monitor", "monitor-leads", "monitor-timeline",
@@ -74,6 +76,7 @@ def write_report(
     audit: Mapping[str, Any] | None = None,
     crossval: Mapping[str, Any] | None = None,
     closed_loop: Mapping[str, Any] | None = None,
+    anatomy: Mapping[str, Path] | None = None,
 ) -> None:
     """Assemble the report from the artefacts the workflow produced, reading only the paths it
     is given (the learning section and headline from ``learning``, the studies' artefacts, and
@@ -89,7 +92,8 @@ def write_report(
     inputs), the section "Sensor realism"; ``audit``: the input audit's (``audit_*``);
     ``crossval``: the k-fold study's (``crossval_<protocol>_*``), the section "Generalisation
     across objects"; ``closed_loop``: the closed loop's summaries (``closed_loop_<protocol>_*``),
-    the section "Closed loop"."""
+    the section "Closed loop"; ``anatomy``: the failure anatomy's summaries and figures
+    (``anatomy_<protocol>_*``), the section "Failure anatomy"."""
     metas = [read_json(p) for p in object_meta]
     bench = {Path(p).stem: read_benchmark(p) for p in benchmark_files}
     hand = read_json(hand_json)
@@ -110,6 +114,7 @@ def write_report(
         *synthesis_parts(figures, grasp_summaries, anneal_benchmarks),
         *replay_parts(replay_outcomes, figures, (rule_benchmarks or {}).get("replay_grasps", ())),
         *(contact_parts(speeds_summary, figures, config["replay"]) if replay_outcomes else []),
+        *anatomy_parts(anatomy),
         *dataset_parts(dataset_summary, sweep_summaries, figures),
         *([learning_section(learning, learning_figures or {}, config)] if learning else []),
         monitor_section(monitor, ramp_monitor),
