@@ -206,7 +206,7 @@ def trained_lstm(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 MONITOR = {"window_s": 0.01, "stride": 5, "debounce": 1, "batch_size": 64,
-           "timeline_family": "lstm"}  # fmt: skip
+           "timeline_family": "lstm", "early_warning": {"budget_per_s": 0.02, "ahead_s": 0.05}}
 
 
 @pytest.fixture(scope="module")
@@ -239,6 +239,11 @@ def test_entry_point_writes_per_grasp_rows_summaries_and_a_timeline(
                 summarise_episodes(results_of(rows)), default=float))  # fmt: skip
     proxy = summary["monitors"]["proxy"]
     assert proxy["window_steps"] == 1 and proxy["threshold_choice"]["windows"] == 24
+    # early warning at the budget: one entry per monitor, over the test replay
+    ew = summary["early_warning"]
+    assert ew["budget_per_s"] == 0.02 and set(ew["monitors"]) == {"lstm", "proxy"}
+    for e in ew["monitors"].values():
+        assert e["test"]["grasps"] == 1 and e["threshold"]["false_per_s"] is not None
     # the onset is a property of the replay, not of the monitor
     assert frame.group_by("object", "grasp_id").agg(pl.col("onset").n_unique())["onset"].max() == 1
     arrays = load_npz(evaluated / "timeline.npz")
@@ -264,7 +269,9 @@ def test_figures_and_report_section_from_the_entry_points_outputs(
     assert 'id="monitor"' in html and 'id="monitor-leads"' in html
     assert "friction-ratio proxy" in html
     assert not re.search(r"\bnan\b", re.sub(r'src="data:[^"]*"', "", html), re.IGNORECASE)
-    assert html.count("<tr>") == 1 + 2 * 2  # header + (lstm, proxy) x (test, val)
+    # header + (lstm, proxy) x (test, val); the early-warning table: header + lstm, proxy
+    assert html.count("<tr>") == 1 + 2 * 2 + 1 + 2
+    assert "Early warning at a false-warning budget" in html
 
 
 def test_export_run_writes_files_that_reproduce_the_checkpoint(

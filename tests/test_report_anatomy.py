@@ -63,3 +63,20 @@ def test_the_side_by_side_section_describes_the_benchmark_s_own_load() -> None:
     ramp = {"protocol": "ramp", "ramp": {"start_s": 1.0, "rate": 5.0, "ceiling": 30.0,
                                          "directions": "sphere", "path": "servo"}}
     assert "after 1 s" in load_sentence(ramp) and "path servo" in load_sentence(ramp)
+
+
+def test_the_monitor_section_shows_the_early_warning_table() -> None:
+    from graspstab.report.monitor import early_warning_part
+
+    summary = {"early_warning": {"budget_per_s": 0.02, "ahead_s": 0.05, "monitors": {
+        "proxy": {"threshold": {"threshold": 0.4321, "at_floor": True, "never_warns": False,
+                                "false_per_s": 0.01},
+                  "test": {"failing_after_still": 8, "warned_before_onset": 5, "warned_ahead": 4,
+                           "warned_ahead_share": 0.5, "median_lead_s": 0.12,
+                           "false_per_s": 0.03}}}}}  # fmt: skip
+    html = "".join(early_warning_part(summary))
+    assert "one per 50 s" in html and "50 ms" in html
+    rows = _cells(html)
+    assert rows[0] == ["friction-ratio proxy", "0.4321 (grid floor)", "0.010", "8", "5", "4",
+                       "50.0 %", "0.120", "0.030"]
+    assert early_warning_part({}) == []

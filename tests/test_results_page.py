@@ -99,6 +99,13 @@ def test_record_of_the_toy_run_holds_the_report_figures(run) -> None:
     test = summary["splits"]["test"]
     assert rec["protocols"]["reference"]["datasets"]["test"]["unstable"] == test["unstable"]
     assert rec["scale"]["seeds"] == [42]
+    # each protocol's failure anatomy, as its job wrote it
+    for name, root in (("reference", "results"), ("creep_free", "results/creep_free")):
+        anatomy = json.loads((workdir / root / "replay" / "anatomy.json").read_text())
+        kept = rec["protocols"][name]["anatomy"]
+        assert kept == {k: anatomy[k] for k in rp.ANATOMY_KEYS}
+        assert f"of {anatomy['usable']} usable grasps" in rp.anatomy_line(
+            rec["protocols"][name], name)
     # and the record renders: its block names the commit and the command
     block = rp.profile_block(rec)
     assert rec["commit"][:7] in block and command in block
@@ -158,3 +165,15 @@ def test_still_now_table_and_sentence_from_the_record() -> None:
     # a record written before these figures: no table, no sentence
     old = {k: v for k, v in some.items() if k != "still"}
     assert still_table(old) is None and still_text(old) == ""
+
+
+def test_anatomy_line_from_the_record() -> None:
+    block = {"anatomy": {"protocol": "perturb", "usable": 10, "held": 4, "failed": 6,
+                         "types": {"fingertip_slip": 2, "link_slip": 4, "rotation": 0},
+                         "moving_at_settle": 1, "still_window": 5,
+                         "onset_quartiles_s": [1.0, 2.0, 3.5]}}
+    line = rp.anatomy_line(block, "hidden-onset disturbance")
+    assert "of 10 usable grasps, 6 fail after settling (fingertip slip 2, link slip 4)" in line
+    assert "median 2.00 s after settling (quartiles 1.00-3.50 s)" in line
+    assert "1 of them already move" in line and "5 leave a still observation window" in line
+    assert rp.anatomy_line({}, "x") is None

@@ -21,6 +21,7 @@ import torch
 from graspstab.common.io import save_npz, write_json, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.monitor.checkpoint import read_trained
+from graspstab.monitor.early_warning import early_warning
 from graspstab.monitor.episodes import summarise_episodes
 from graspstab.monitor.grasp_level import (
     SPLITS,
@@ -86,8 +87,9 @@ def evaluate_monitor(
     stride, debounce = int(monitor["stride"]), int(monitor["debounce"])
     episodes = read_episodes(replays, splits, labels, dt)  # one replay in memory at a time
     batch = int(monitor["batch_size"])
+    scored: dict[str, list[Any]] = {}
     frame, _ = evaluate_monitors(episodes, scorers, labels, dt, stride=stride, debounce=debounce,
-                                 batch_size=batch)  # fmt: skip
+                                 batch_size=batch, scored=scored)  # fmt: skip
     focus = monitor["timeline_family"] if monitor["timeline_family"] in scorers else PROXY
     chosen = timeline_grasp(frame, focus)
     timeline: dict[str, Any] = {"monitor": focus, "object": None, "grasp_id": None}
@@ -121,6 +123,23 @@ def evaluate_monitor(
                  "warnings per stable grasp-second", name, test["failing_grasps"],
                  test["warned_in_time"], test["median_lead_s"],
                  test["false_warnings_per_stable_s"])  # fmt: skip
+    ew = monitor["early_warning"]
+    summary["early_warning"] = {
+        "budget_per_s": float(ew["budget_per_s"]), "ahead_s": float(ew["ahead_s"]),
+        "monitors": {
+            name: early_warning([g for g in grasps if g.split == "val"],
+                                [g for g in grasps if g.split == "test"],
+                                budget_per_s=float(ew["budget_per_s"]),
+                                ahead_s=float(ew["ahead_s"]), debounce=debounce, dt=dt)
+            for name, grasps in scored.items()
+        },
+    }  # fmt: skip
+    for name, e in summary["early_warning"]["monitors"].items():
+        log.info("%s at a budget of %g false warnings per stable second: threshold %.4g%s; test "
+                 "%s of %s grasps failing after a still period warned >= %g s ahead", name,
+                 ew["budget_per_s"], e["threshold"]["threshold"],
+                 " (grid floor)" if e["threshold"]["at_floor"] else "", e["test"]["warned_ahead"],
+                 e["test"]["failing_after_still"], ew["ahead_s"])  # fmt: skip
     write_parquet(out_episodes, frame)
     save_npz(out_timeline, **arrays)
     write_json(out_summary, summary)

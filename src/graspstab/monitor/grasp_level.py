@@ -20,9 +20,12 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from graspstab.labels.anatomy import failure, still_window_before
 from graspstab.labels.interval import usable_interval
 from graspstab.labels.replays import replay_grasps
 from graspstab.labels.sources import source_channels, unstable_steps
+from graspstab.labels.windows import step_counts, timestep_labels
+from graspstab.monitor.early_warning import ScoredGrasp
 from graspstab.monitor.episodes import EpisodeResult, evaluate_episode, first_scored
 from graspstab.monitor.scoring import WindowScorer
 from graspstab.monitor.stream import MonitorTrace, score_trace
@@ -45,6 +48,10 @@ class Episode:
     start: int  # settle index (3.3.1)
     end: int  # contact end (exclusive)
     contact_lost: bool  # the interval ended by contact loss (end < the trace's length)
+    # the failure anatomy's view (labels.anatomy): whether the grasp fails after settling, and
+    # its onset when a still observation window precedes it (None otherwise, or without rules)
+    fails: bool = False
+    still_onset: int | None = None
 
 
 def read_episodes(
@@ -57,8 +64,10 @@ def read_episodes(
 ) -> Iterator[Episode]:
     """The usable episodes of the (table, traces) pairs whose object's split is in ``keep`` (or
     only the one ``grasp``, (object, grasp id))."""
+    anatomy = "anatomy" in labels
     wanted = dict.fromkeys(("velocity", "min_distance", "normal", "shear",
-                            *source_channels(dict(labels))))  # fmt: skip
+                            *source_channels(dict(labels)), *(("position",) if anatomy else ())))
+    w = step_counts(labels["window_s"], labels["offset_s"], labels["horizon_s"], dt)[0]
     for g in replay_grasps(replays, splits, tuple(wanted), keep, grasp):
         tr = g.traces
         speed = np.linalg.norm(tr["velocity"].astype(np.float64), axis=1)
@@ -70,11 +79,15 @@ def read_episodes(
         if ui.rejected or end <= ui.settle_index:
             continue
         forces = np.stack([tr["normal"][:end], tr["shear"][:end]], axis=-1)
+        failed = failure(tr, dict(labels), dt, ui.settle_index, end) if anatomy else None
+        still = failed is not None and still_window_before(
+            timestep_labels(speed, labels["v_slip"]), ui.settle_index, failed[0], w)
         yield Episode(
             object=g.object, grasp_id=g.grasp_id, split=g.split,
             forces=forces.astype(np.float32), speed=speed[:end],
             u=unstable_steps(tr, dict(labels), ui.settle_index)[:end], start=ui.settle_index,
-            end=end, contact_lost=end < len(dist),
+            end=end, contact_lost=end < len(dist), fails=failed is not None,
+            still_onset=failed[0] if still else None,
         )  # fmt: skip
 
 
@@ -94,6 +107,20 @@ def score_episode(
     )  # fmt: skip
 
 
+def scored_grasp(
+    episode: Episode, trace: MonitorTrace, labels: Mapping[str, Any], dt: float
+) -> ScoredGrasp:
+    """What the early-warning evaluation keeps of one monitor's trace on one episode: its scores
+    and, for a grasp that holds, its stable stretch [start, end - O - H) (as
+    ``monitor.episodes`` bounds false warnings)."""
+    frames = np.flatnonzero(np.isfinite(trace.prob))
+    _, o, h = step_counts(0.0, labels["offset_s"], labels["horizon_s"], dt)
+    stable_end = None if episode.fails else max(episode.start, episode.end - o - h)
+    return ScoredGrasp(split=episode.split, frames=frames, scores=trace.prob[frames],
+                       start=episode.start, end=episode.end, stable_end=stable_end,
+                       onset=episode.still_onset, failing=episode.fails)  # fmt: skip
+
+
 def evaluate_monitors(
     episodes: Iterator[Episode] | Sequence[Episode],
     scorers: Mapping[str, WindowScorer],
@@ -104,9 +131,12 @@ def evaluate_monitors(
     debounce: int,
     batch_size: int = 4096,
     keep_traces: set[tuple[str, int]] | None = None,
+    scored: dict[str, list[ScoredGrasp]] | None = None,
 ) -> tuple[pl.DataFrame, dict[tuple[str, int], dict[str, Any]]]:
     """Every scorer on every episode: one row per (monitor, grasp) with the episode's outcome, and
-    for the grasps in ``keep_traces`` ((object, grasp id)) the episode and each monitor's trace."""
+    for the grasps in ``keep_traces`` ((object, grasp id)) the episode and each monitor's trace;
+    with ``scored``, each monitor's scores per grasp are appended to ``scored[monitor]`` (the
+    early-warning evaluation's input, :func:`scored_grasp`)."""
     rows: list[dict[str, Any]] = []
     kept: dict[tuple[str, int], dict[str, Any]] = {}
     count = 0
@@ -117,6 +147,8 @@ def evaluate_monitors(
             trace = score_trace(scorer, episode.forces, stride=stride, debounce=debounce,
                                 batch_size=batch_size)  # fmt: skip
             result = score_episode(episode, trace, labels, dt)
+            if scored is not None:
+                scored.setdefault(name, []).append(scored_grasp(episode, trace, labels, dt))
             c = scorer.constants
             rows.append({"monitor": name, "threshold": c.threshold,
                          "window_steps": c.window_steps, **asdict(result)})  # fmt: skip

@@ -65,6 +65,38 @@ def export_rows(exports: Mapping[str, Mapping[str, Path]]) -> list[list[str]]:
 TITLE = "Grasp-level warnings from a streaming monitor"
 
 
+def early_warning_part(summary: Mapping[str, Any], what: str = "") -> list[str]:
+    """The early-warning table at a false-warning budget (``monitor.early_warning``), when the
+    summary has it."""
+    ew = summary.get("early_warning")
+    if not ew:
+        return []
+    rows = []
+    for name, e in ew["monitors"].items():
+        th, t = e["threshold"], e["test"]
+        cut = _num(th["threshold"], ".4g") + (" (grid floor)" if th["at_floor"] else "") + (
+            " (never warns)" if th["never_warns"] else "")
+        rows.append([_label(name), cut, _num(th["false_per_s"], ".3f"),
+                     t["failing_after_still"], t["warned_before_onset"], t["warned_ahead"],
+                     _pct(t["warned_ahead_share"]), _num(t["median_lead_s"], ".3f"),
+                     _num(t["false_per_s"], ".3f")])  # fmt: skip
+    budget, ahead = ew["budget_per_s"], ew["ahead_s"]
+    return [
+        f"<p>{H.esc(what)}Early warning at a false-warning budget: each monitor's threshold is "
+        "the lowest from which on the validation grasps that hold raise at most "
+        f"{budget:g} false warnings per stable grasp-second (one per {1 / budget:g} s); at it, "
+        "the test grasps whose failing motion begins after a still observation window (the "
+        "failure anatomy's onset) are warned ahead when the first warning after the settle "
+        f"index comes at least {1e3 * ahead:g} ms before the onset. A threshold at the grid "
+        "floor means the budget did not bind.</p>",
+        H.table(["monitor", "threshold", "val false warnings / stable s",
+                 "test grasps failing after a still period", "warned before onset",
+                 f"warned >= {1e3 * ahead:g} ms ahead", "share", "median lead [s]",
+                 "test false warnings / stable s"], rows,
+                caption=f"{what}Early warning at the false-warning budget (test split)"),
+    ]  # fmt: skip
+
+
 def onset_at_start(summary: Mapping[str, Any], split: str = "test") -> tuple[int, int]:
     """(failing grasps, of them those whose onset left no room for a warning in time) of a split:
     under a creeping contact model most grasps are "unstable" from their first settled frame."""
@@ -91,6 +123,7 @@ def protocol_part(summary: Mapping[str, Any], leads: Path, timeline: Path, suffi
         f"{no_room} fail within the offset of the first frame a monitor can warn on (under a "
         "creeping contact model most at the settle index itself): no monitor can warn them in "
         "time, whatever it scores.</p>",
+        *early_warning_part(summary, what),
         H.image(leads, "lead-time histogram",
                 f"{what}Lead time (onset minus first warning) of the test split's failing grasps "
                 "that were warned before their onset, per monitor.", f"monitor-leads{suffix}",

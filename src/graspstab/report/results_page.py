@@ -136,6 +136,11 @@ def _dataset(path: Path) -> dict[str, Any] | None:
     }
 
 
+#: what a record keeps of a protocol's failure anatomy (labels.summarise_anatomy's summary)
+ANATOMY_KEYS = ("protocol", "usable", "held", "failed", "types", "moving_at_settle",
+                "still_window", "onset_quartiles_s")  # fmt: skip
+
+
 def _protocol_block(root: Path) -> dict[str, Any] | None:
     """One protocol's datasets, baseline figures, proxy and sweep (None when not run)."""
     a = _studies(root)
@@ -150,6 +155,8 @@ def _protocol_block(root: Path) -> dict[str, Any] | None:
     block["proxy"] = _fig(proxy_figure(a))
     if (still := _still_block(a)) is not None:
         block["still"] = still
+    if (anatomy := _summary(root / "replay" / "anatomy.json")) is not None:
+        block["anatomy"] = {k: anatomy[k] for k in ANATOMY_KEYS}
     if Path(a.sweep_runs).is_file():
         runs = read_parquet(a.sweep_runs).filter(pl.col("split") == "val")
         block["sweep"] = [
@@ -487,6 +494,21 @@ def still_table(block: Mapping[str, Any]) -> str | None:
                    "still now"], rows)  # fmt: skip
 
 
+def anatomy_line(block: Mapping[str, Any], title: str) -> str | None:
+    """The failure anatomy of one protocol in a sentence (None for a record without it)."""
+    a = block.get("anatomy")
+    if not a:
+        return None
+    types = ", ".join(f"{t.replace('_', ' ')} {n}" for t, n in a["types"].items() if n)
+    q = a["onset_quartiles_s"]
+    onset = (f"; the failing motion begins a median {q[1]:.2f} s after settling (quartiles "
+             f"{q[0]:.2f}-{q[2]:.2f} s)") if q[1] is not None else ""  # fmt: skip
+    return (f"**Failure anatomy, {title}**: of {a['usable']} usable grasps, {a['failed']} fail "
+            f"after settling ({types or 'no type'}){onset}. {a['moving_at_settle']} of them "
+            f"already move at their settle index; {a['still_window']} leave a still observation "
+            "window before their onset, the only failures an early warning can foresee.")
+
+
 def _sweep_table(block: Mapping[str, Any]) -> str:
     sweep = block.get("sweep") or []
     windows = sorted({r["window_s"] for r in sweep})
@@ -545,6 +567,8 @@ def profile_block(rec: Mapping[str, Any]) -> str:
                 "sensor sees, and is a reference line, never a monitor:"
             )
             parts.append(still)
+        if (anatomy := anatomy_line(block, title)) is not None:
+            parts.append(anatomy)
         if block.get("sweep"):
             parts.append(f"**Window sweep, {title}**: validation AUPRC (%), mean ± std over seeds:")
             parts.append(_sweep_table(block))
