@@ -29,6 +29,7 @@ from graspstab.config.show import parse_snakemake_config
 from graspstab.learning.models import build_model
 from graspstab.monitor.constants import MonitorConstants
 from graspstab.monitor.scoring import TorchScorer
+from graspstab.replay.grasp_setup import slip_sampler
 from graspstab.replay.scene import build_replay_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,11 +62,12 @@ def main() -> None:
     for obj in args.objects:
         scene = build_replay_scene(args.results / "hand", args.results / "objects" / obj, params)
         data = mujoco.MjData(scene.model)
+        slip = slip_sampler(scene, params)
         closing, upper = actuator_axes(scene, scene.model.nu)
         grasps = read_parquet(args.results / "grasps" / obj / "shard_0.parquet").head(args.grasps)
         for g in grasps.iter_rows(named=True):
             t0 = time.perf_counter()
-            base = replay_once(scene, data, g, obj, params)
+            base = replay_once(scene, data, g, obj, params, slip=slip)
             walls["open loop"].append(time.perf_counter() - t0)
             steps += base.steps
             ran["open loop"] += base.steps
@@ -73,7 +75,7 @@ def main() -> None:
                 grip = make_reflex(policy, reflex, closing, upper, dt, stride=mon["stride"],
                                    debounce=mon["debounce"])  # fmt: skip
                 t0 = time.perf_counter()
-                run = replay_once(scene, data, g, obj, params, grip)
+                run = replay_once(scene, data, g, obj, params, grip, slip)
                 walls[name].append(time.perf_counter() - t0)
                 ran[name] += run.steps
                 if name == "lstm monitor":

@@ -35,7 +35,7 @@ from graspstab.config import compose_config
 from graspstab.labels.anatomy import TYPES, grasp_anatomy
 from graspstab.labels.label_windows import grasp_windows
 from graspstab.labels.windows import timestep_labels
-from graspstab.replay.grasp_setup import grasp_load, slip_every
+from graspstab.replay.grasp_setup import grasp_load, slip_sampler
 from graspstab.replay.protocols import creep_free_labels, creep_free_replay
 from graspstab.replay.run import run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
@@ -71,6 +71,7 @@ def object_rows(args: tuple[str, str, Path, tuple[str, ...]]) -> list[dict[str, 
     labellings = {c: labelling(labels, c) for c in changes}
     scene = build_replay_scene(workdir / "results/hand", workdir / "results/objects" / obj, replay)
     data = mujoco.MjData(scene.model)
+    slip = slip_sampler(scene, replay)
     dt = float(replay["timestep"])
     w = round(labels["window_s"] / dt)
     rows = []
@@ -85,7 +86,7 @@ def object_rows(args: tuple[str, str, Path, tuple[str, ...]]) -> list[dict[str, 
             load = grasp_load(replay, scene, scene.model.opt.gravity.copy(), obj, gid)
             res = run_replay(scene.model, data, scene.layout, int(replay["steps"]),
                              int(replay["chunk_steps"]), round(replay["stop_after_loss_s"] / dt),
-                             load, scene.object_body, slip_every=slip_every(replay))  # fmt: skip
+                             load, scene.object_body, slip=slip)  # fmt: skip
             if res.stop_reason == "diverged":
                 continue
             tr = to_object_frame(res.traces, pos, quat)

@@ -88,7 +88,7 @@ def test_a_box_pulled_out_of_a_two_finger_grasp_slides_at_both_fingertips() -> N
     load = RampLoad(np.array([0.0, 0.0, -1.0]), weight=1.0, dt=DT, start_s=0.0, rate=10.0,
                     ceiling=20.0, path="linear")  # fmt: skip
     run = run_replay(model, data, layout, 2000, 100, 10**6, load, layout.object_body,
-                     slip_every=4)  # fmt: skip
+                     slip=SlipSampler(model, layout, 4))  # fmt: skip
     tr = run.traces
     speed = np.linalg.norm(tr["velocity"], axis=1)
     tip = tr["tip_slip"]

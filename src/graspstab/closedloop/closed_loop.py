@@ -27,10 +27,11 @@ from graspstab.closedloop.reflex import GripReflex, ReflexParams
 from graspstab.closedloop.sweep import Variant, default_variant
 from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.labels.interval import steps_of
-from graspstab.replay.grasp_setup import deep_stop, grasp_load, slip_every
+from graspstab.replay.grasp_setup import deep_stop, grasp_load, slip_sampler
 from graspstab.replay.protocols import creep_free_replay, replay_params
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp
+from graspstab.replay.slip import SlipSampler
 
 log = logging.getLogger("graspstab.closedloop")
 
@@ -91,8 +92,11 @@ def timeline_rank(row: dict[str, Any]) -> int:
 
 
 def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_id: str,
-                params: dict[str, Any], controller: Any = None) -> ReplayResult:  # fmt: skip
-    """One replay of ``grasp`` (a grasp-table row) from its placement, with ``controller``."""
+                params: dict[str, Any], controller: Any = None,
+                slip: SlipSampler | None = None) -> ReplayResult:  # fmt: skip
+    """One replay of ``grasp`` (a grasp-table row) from its placement, with ``controller``
+    (``slip``: the scene's slip sampler, ``replay.grasp_setup.slip_sampler``; None: a new one,
+    which copies the model)."""
     pos = np.array([grasp[f"wrist_{a}"] for a in "xyz"])
     quat = np.array([grasp[f"quat_{a}"] for a in "wxyz"])
     joints = np.array([grasp[f"theta_{k:02d}"] for k in range(16)])
@@ -103,7 +107,7 @@ def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_i
     return run_replay(
         scene.model, data, scene.layout, int(params["steps"]), int(params["chunk_steps"]),
         max(1, round(float(params["stop_after_loss_s"]) / dt)), load, scene.object_body,
-        deep_stop(params), controller=controller, slip_every=slip_every(params),
+        deep_stop(params), controller=controller, slip=slip,
     )  # fmt: skip
 
 
@@ -138,6 +142,7 @@ def closed_loop_object(
     that label's runs of the one grasp that shows the reflex best (``timeline_rank``)."""
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
+    slip = slip_sampler(scene, params)
     dt = float(params["timestep"])
     closing, upper = actuator_axes(scene, scene.model.nu)
     lead = float(labels["horizon_s"] if oracle_lead_s is None else oracle_lead_s)
@@ -163,7 +168,7 @@ def closed_loop_object(
     for i, g in enumerate(grasps.iter_rows(named=True)):
         gid = int(g["grasp_id"])
         start = time.perf_counter()
-        base_run = replay_once(scene, data, g, object_id, params)
+        base_run = replay_once(scene, data, g, object_id, params, slip=slip)
         base = baseline_of(base_run.traces, labels, dt)
         wall = {"none": time.perf_counter() - start}
         replayed = {"none": True}
@@ -184,7 +189,7 @@ def closed_loop_object(
                 else:
                     if v.policy.kind == "monitor":
                         grip = reflex_for(v, base.onset)
-                    run, fresh = replay_once(scene, data, g, object_id, params, grip), True
+                    run, fresh = replay_once(scene, data, g, object_id, params, grip, slip), True
                     if key is not None:
                         done_runs[key] = run
             wall[v.label] = time.perf_counter() - start

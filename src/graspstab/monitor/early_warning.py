@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from graspstab.monitor.episodes import rises
-from graspstab.monitor.stream import debounced
+from graspstab.monitor.stream import debounced, held
 
 
 @dataclass(frozen=True)
@@ -47,12 +47,7 @@ class ScoredGrasp:
 def warnings_at(g: ScoredGrasp, threshold: float, debounce: int, length: int) -> np.ndarray:
     """The per-frame warning of ``g`` at ``threshold`` (held between scores), over ``length``
     frames."""
-    warning = np.zeros(length, dtype=bool)
-    if not len(g.frames):
-        return warning
-    state = debounced(g.scores >= threshold, debounce)
-    held = np.searchsorted(g.frames, np.arange(length), side="right") - 1
-    return np.where(held >= 0, state[np.maximum(held, 0)], False)
+    return held(g.frames, debounced(g.scores >= threshold, debounce), length)
 
 
 def false_rate(grasps: Sequence[ScoredGrasp], threshold: float, debounce: int,

@@ -204,6 +204,16 @@ def debounced(unstable: np.ndarray, debounce: int) -> np.ndarray:
     return run >= check_positive("debounce", debounce)
 
 
+def held(frames: np.ndarray, state: np.ndarray, length: int) -> np.ndarray:
+    """Per-frame warning over ``length`` frames from the warning ``state`` after each scored frame
+    (``frames``, ascending): it keeps its value on the frames between two scores, False before
+    the first."""
+    if not len(frames):
+        return np.zeros(length, dtype=bool)
+    last = np.searchsorted(frames, np.arange(length), side="right") - 1
+    return np.where(last >= 0, state[np.maximum(last, 0)], False)
+
+
 def score_trace(
     scorer: WindowScorer,
     trace: Any,
@@ -229,10 +239,5 @@ def score_trace(
         probs[lo : lo + size] = scorer(np.moveaxis(views[rows], -1, 1))
     prob = np.full(len(x), np.nan)
     prob[frames] = probs
-    warning = np.zeros(len(x), dtype=bool)
-    if len(frames):
-        state = debounced(probs >= cut, debounce)
-        # the warning keeps its value on the frames between two scores
-        held = np.searchsorted(frames, np.arange(len(x)), side="right") - 1
-        warning = np.where(held >= 0, state[np.maximum(held, 0)], False)
+    warning = held(frames, debounced(probs >= cut, debounce), len(x))
     return MonitorTrace(prob, warning)

@@ -11,6 +11,7 @@ import numpy as np
 
 from graspstab.replay.ramp import RampLoad, ramp_direction, ramp_load
 from graspstab.replay.run import DeepStop
+from graspstab.replay.slip import SlipSampler
 
 
 def grasp_stream(seed: int, object_id: str, grasp_id: int) -> np.random.Generator:
@@ -65,6 +66,8 @@ def deep_stop(params: dict[str, Any]) -> DeepStop | None:
                     round(float(rule["after_s"]) / dt))  # fmt: skip
 
 
-def slip_every(params: dict[str, Any]) -> int:
-    """Steps between contact slip samples (``params["slip_every_s"]``, at least one step)."""
-    return max(1, round(float(params["slip_every_s"]) / float(params["timestep"])))
+def slip_sampler(scene: Any, params: dict[str, Any]) -> SlipSampler:
+    """The contact slip sampler of a replay scene, every ``params["slip_every_s"]`` (at least one
+    step): one per scene, passed to each of its replays."""
+    every = max(1, round(float(params["slip_every_s"]) / float(params["timestep"])))
+    return SlipSampler(scene.model, scene.layout, every)

@@ -28,7 +28,7 @@ from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance, write_timing
 from graspstab.common.runs import earliest_run
-from graspstab.replay.grasp_setup import deep_stop, grasp_load, slip_every
+from graspstab.replay.grasp_setup import deep_stop, grasp_load, slip_sampler
 from graspstab.replay.ramp import RampLoad
 from graspstab.replay.run import ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp, to_object_frame
@@ -101,7 +101,7 @@ def replay_grasps(
     stop_loss = max(1, round(float(params["stop_after_loss_s"]) / dt))
     loss_steps = max(1, round(float(params["contact_loss_s"]) / dt))
     too_deep = deep_stop(params)
-    every = slip_every(params)
+    slip = slip_sampler(scene, params)
     gravity = np.asarray(params["gravity"], dtype=np.float64)
     arrays: dict[str, np.ndarray] = {}
     rows, walls = [], []
@@ -114,7 +114,7 @@ def replay_grasps(
         load = grasp_load(params, scene, scene.model.opt.gravity.copy(), object_id,
                           int(g["grasp_id"]))  # fmt: skip
         result = run_replay(scene.model, data, scene.layout, steps, chunk, stop_loss, load,
-                            scene.object_body, too_deep, slip_every=every)  # fmt: skip
+                            scene.object_body, too_deep, slip=slip)  # fmt: skip
         traces = to_object_frame(result.traces, pos, quat)
         for channel, values in traces.items():
             arrays[trace_key(g["grasp_id"], channel)] = values

@@ -28,7 +28,7 @@ import numpy as np
 from graspstab.common.runs import earliest_run
 from graspstab.replay.ramp import CONTROL_SPEC, RampLoad, control_rows
 from graspstab.replay.sensors import SensorLayout, force_features, motion_features
-from graspstab.replay.slip import SlipSampler
+from graspstab.replay.slip import DEFAULT_EVERY, SlipSampler
 from graspstab.replay.traces import ANATOMY, CHANNELS, LOAD
 
 # Rows of raw sensordata whose force channels are computed in one call: under the load ramp's
@@ -112,7 +112,7 @@ def run_replay(
     load_body: int = -1,
     deep_stop: DeepStop | None = None,
     controller: Controller | None = None,
-    slip_every: int = 20,
+    slip: SlipSampler | None = None,
 ) -> ReplayResult:
     """Roll out ``steps`` steps from ``data``'s current state with its current controls.
 
@@ -124,8 +124,10 @@ def run_replay(
     (simulation frame, the force during step t). ``deep_stop`` (None: never) stops a replay
     the depth rule will reject. ``controller`` (None: open loop) closes the loop: its targets
     drive the actuators and it sees every chunk's forces before the next chunk runs; the
-    largest target offset it applies at each step is trace channel ``reflex``. The contact slip
-    channels are sampled every ``slip_every`` steps (:mod:`graspstab.replay.slip`).
+    largest target offset it applies at each step is trace channel ``reflex``. ``slip`` samples
+    the contact slip channels (:mod:`graspstab.replay.slip`; None: a new sampler every
+    ``slip.DEFAULT_EVERY`` steps); build one per scene and pass it to every replay of the scene,
+    since building one copies the model.
     """
     if chunk < 1 or steps < 1:
         raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
@@ -135,7 +137,8 @@ def run_replay(
     if load is not None and load_body < 0:
         raise ValueError(f"a load needs the body it acts on, got body {load_body}")
     channels = (*CHANNELS, *ANATOMY) if load is None else (*CHANNELS, *ANATOMY, LOAD)
-    slip = SlipSampler(model, layout, slip_every)
+    slip = SlipSampler(model, layout, DEFAULT_EVERY) if slip is None else slip
+    slip.reset()
     if controller is not None:
         channels = (*channels, REFLEX)
     base = data.ctrl.copy()

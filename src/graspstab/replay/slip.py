@@ -11,13 +11,15 @@ creep), so "slip" is a speed, and the labels and the anatomy choose their thresh
 
 from __future__ import annotations
 
+import copy
+
 import mujoco
 import numpy as np
 
 from graspstab.replay.sensors import SensorLayout
 
-#: columns of a sample: the fingertips (eq. 19's order), then every other hand link together
-LINKS = "links"
+#: steps between two samples when the caller gives no sampler (10 ms at 0.5 ms steps)
+DEFAULT_EVERY = 20
 
 
 def body_classes(model: mujoco.MjModel, layout: SensorLayout) -> np.ndarray:
@@ -69,9 +71,7 @@ def contact_slip(
 
 def object_contacts_only(model: mujoco.MjModel, layout: SensorLayout) -> mujoco.MjModel:
     """A copy of ``model`` whose hand geoms collide with the object's and nothing else: the
-    slip sampler's collision pass then skips the hand's self-contacts (a third of its cost)."""
-    import copy
-
+    slip sampler's collision pass then skips the hand's self-contacts (about half its time)."""
     out = copy.copy(model)
     hand = np.isin(out.geom_bodyid, list(layout.hand_bodies))
     obj = out.geom_bodyid == layout.object_body
@@ -95,6 +95,10 @@ class SlipSampler:
         self.classes = body_classes(model, layout)
         self.object_body = layout.object_body
         self.last = np.zeros(len(layout.tip_bodies) + 1)
+
+    def reset(self) -> None:
+        """Forget the last sample: a new replay starts (the derived model is kept)."""
+        self.last = np.zeros_like(self.last)
 
     def sample(self, state: np.ndarray) -> np.ndarray:
         """The slip columns of one full-physics state."""
