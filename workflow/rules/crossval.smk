@@ -75,9 +75,8 @@ rule train_fold_model:
     input:
         **dataset_inputs(f"results/datasets/sweep/w{CV_MS}ms"),
     output:
-        **run_outputs(
-            "results/train/crossval/{variant}/{model}/f{fold}/seed{seed}", checkpoint=False
-        ),
+        # the checkpoint: each fold's monitors score its validation and test replays
+        **run_outputs("results/train/crossval/{variant}/{model}/f{fold}/seed{seed}"),
     params:
         spec=lambda wc: config["sweep"]["models"][wc.model],
         pooling=config["sweep"]["recurrent_pooling"],
@@ -156,8 +155,7 @@ if "creep_free" in CV["protocols"]:
             **dataset_inputs(f"{CREEP_FREE}/datasets/sweep/w{CV_MS}ms"),
         output:
             **run_outputs(
-                f"{CREEP_FREE}/train/crossval/{{variant}}/{{model}}/f{{fold}}/seed{{seed}}",
-                checkpoint=False,
+                f"{CREEP_FREE}/train/crossval/{{variant}}/{{model}}/f{{fold}}/seed{{seed}}"
             ),
         log:
             "results/logs/train_fold_model_creep_free/{variant}_{model}_f{fold}_seed{seed}.log",
