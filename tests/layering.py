@@ -215,6 +215,8 @@ ENTRY_MODULES: frozenset[str] = frozenset({
     "graspstab.figures.crossval",            # plot_crossval
     "graspstab.figures.robustness",          # plot_sensor_robustness
     "graspstab.monitor.evaluate_monitor",    # evaluate_monitor
+    "graspstab.monitor.evaluate_fold_monitor",  # evaluate_fold_monitor*
+    "graspstab.monitor.aggregate_fold_warning",  # aggregate_fold_warning*
     "graspstab.monitor.export_models",       # export_monitor
     "graspstab.monitor.figures",             # plot_monitor
     "graspstab.closedloop.closed_loop",      # closed_loop_object

@@ -255,6 +255,49 @@ def test_entry_point_writes_per_grasp_rows_summaries_and_a_timeline(
     assert arrays["forces"].shape == (end - lo, 5, 2) and len(arrays["prob_lstm"]) == end - lo
 
 
+def test_fold_entry_points_score_a_folds_replays_and_pool_the_folds(
+    tmp_path: Path, trained_lstm: tuple[Path, Path]
+) -> None:
+    """evaluate_fold_monitor on a fold whose validation and test objects are the hand-made
+    replays' (the training object is not read), twice as two folds with the splits swapped, then
+    aggregate_fold_warning and the report's part: the rows per monitor and test grasp agree with
+    the per-fold thresholds, and the pooled counts with the rows."""
+    from graspstab.monitor.aggregate_fold_warning import aggregate_fold_warning
+    from graspstab.monitor.evaluate_fold_monitor import evaluate_fold_monitor
+    from graspstab.report.crossval import _warning_parts
+
+    _, run = trained_lstm
+    replays = write_replays(tmp_path)
+    runs = {"lstm": (run / "model.pt", run / "metrics.json")}
+    folds = [SPLITS, {VAL: "test", TEST: "val", TRAIN_OBJ: "train"}]
+    out = []
+    for k, assignment in enumerate(folds):
+        grasps, thresholds = tmp_path / f"f{k}" / "grasps.parquet", tmp_path / f"f{k}" / "t.json"
+        summary = evaluate_fold_monitor(replays, runs, assignment, k, LABELS, DT, MONITOR, grasps,
+                                        thresholds)  # fmt: skip
+        rows = pl.read_parquet(grasps)
+        assert set(rows["monitor"]) == {"lstm", "proxy"} and set(rows["fold"]) == {k}
+        test = {o for o, s in assignment.items() if s == "test"}
+        assert set(rows["object"]) == test  # test grasps only; validation chose the threshold
+        for name, choice in summary["thresholds"].items():
+            mine = rows.filter(pl.col("monitor") == name)
+            assert (mine["threshold"] == choice["threshold"]).all()
+            assert choice["val_grasps"] == {0: 2, 1: 1}[k]  # usable replays of the val object
+        out.append((grasps, thresholds))
+    pooled = aggregate_fold_warning([g for g, _ in out], [t for _, t in out], "creep_free",
+                                    {"resamples": 100, "seed": 0, "level": 0.95},
+                                    tmp_path / "rows.parquet", tmp_path / "ew.json")  # fmt: skip
+    every = pl.read_parquet(tmp_path / "rows.parquet")
+    for name, r in pooled["monitors"].items():
+        mine = every.filter(pl.col("monitor") == name)
+        assert r["grasps"] == mine.height == 3 and r["folds"] == 2
+        assert r["failing_after_still"] == int(mine["after_still"].sum())
+        assert pooled["thresholds"][name]["at_floor"] <= 2
+    assert pooled["folds"] == 2 and pooled["answer"].startswith("Under the creep-free protocol")
+    html = "\n".join(_warning_parts(read_json(tmp_path / "ew.json"), "hidden-onset"))
+    assert "crossval-warning-creep_free" in html and pooled["answer"].split(",")[0] in html
+
+
 def test_figures_and_report_section_from_the_entry_points_outputs(
     evaluated: Path, tmp_path: Path
 ) -> None:

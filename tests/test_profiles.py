@@ -172,6 +172,21 @@ def test_wide_profile_tests_every_object_once_per_family_and_protocol(bare_env, 
     assert tested == sorted(cfg["objects"]["items"])
     jobs = [j for j in listed_jobs(proc.stdout) if j["rule"] == "train_fold_model"]
     assert {int(j["wildcards"]["fold"]) for j in jobs} == set(range(cv["k"]))
+    # early warning over the folds: the hidden-onset protocol only, one job per fold reading
+    # that fold's own models and its validation and test objects' replays, nothing else
+    assert cv["early_warning"] == ["creep_free"] and "evaluate_fold_monitor" not in counts
+    assert counts["evaluate_fold_monitor_creep_free"] == cv["k"]
+    assert counts["aggregate_fold_warning_creep_free"] == 1
+    for j in listed_jobs(proc.stdout):
+        if j["rule"] != "evaluate_fold_monitor_creep_free":
+            continue
+        k = int(j["wildcards"]["fold"])
+        held = {o for o, s in folds[k].items() if s in ("val", "test")}
+        replays = {Path(p).parent.name for p in j["input"] if "/replay/" in p}
+        assert replays == held
+        models = [p for p in j["input"] if "/train/crossval/" in p]
+        assert len(models) == 2 * len(cv["families"])
+        assert all("/forces/" in p and f"/f{k}/" in p for p in models)
 
 
 @pytest.mark.workflow

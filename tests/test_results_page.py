@@ -177,3 +177,34 @@ def test_anatomy_line_from_the_record() -> None:
     assert "median 2.00 s after settling (quartiles 1.00-3.50 s)" in line
     assert "1 of them already move" in line and "5 leave a still observation window" in line
     assert rp.anatomy_line({}, "x") is None
+
+
+def test_crossval_answers_per_protocol_reach_the_page_and_the_readme(tmp_path: Path) -> None:
+    """A wide record's per-protocol answers (all windows, still now, early warning over the
+    folds) are written into docs/results.md and the README's across-objects block; a record of
+    the older form (the reference summary itself) still renders."""
+    results = tmp_path / "results"
+    for root, name in ((results, "reference"), (results / "creep_free", "creep_free")):
+        d = root / "studies" / "crossval"
+        d.mkdir(parents=True)
+        (d / "summary.json").write_text(json.dumps({
+            "folds": 11, "objects": 44, "answer": f"ALL-{name}.",
+            "answer_still": f"STILL-{name}."}))  # fmt: skip
+        if name == "creep_free":
+            (d / "early_warning.json").write_text(json.dumps(
+                {"answer": "WARN-creep_free.", "monitors": {}, "paired": [], "thresholds": {}}))
+    cv = rp._crossval(results)
+    assert set(cv) == {"reference", "creep_free"} and cv["reference"]["early_warning"] is None
+    rec = {"crossval": cv, "commit": "0123456789abcdef", "cost": {"wall_s": 600.0},
+           "machine": {"cores": 2}}  # fmt: skip
+    lines = rp.crossval_lines(rec)
+    assert lines[0] == "**Cross-validation across objects, reference protocol**: ALL-reference. " \
+        "STILL-reference."
+    assert lines[1].endswith("ALL-creep_free. STILL-creep_free. WARN-creep_free.")
+    assert "WARN-creep_free." in rp.readme_wide(rec) and "`0123456`" in rp.readme_wide(rec)
+    assert "no run is recorded" in rp.readme_wide(None)
+    assert rp.crossval_lines({"crossval": {"answer": "OLD."}}) == [
+        "**Cross-validation across objects**: OLD."]
+    quick = json.loads((REPO / "docs" / "runs" / "quick.json").read_text())
+    readme = rp.render_readme((REPO / "README.md").read_text(), quick, rec)
+    assert "WARN-creep_free." in readme

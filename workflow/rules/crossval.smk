@@ -194,6 +194,86 @@ if "creep_free" in CV["protocols"]:
             "results/benchmarks/plot_crossval_creep_free/creep_free.tsv"
 
 
+# Early warning over the folds (crossval.early_warning: the protocols it runs for): each fold's
+# plain-forces models and the proxy score the fold's validation and test replays as the streaming
+# monitor would, thresholds for monitor.early_warning's false-warning budget from validation;
+# protocols it names that are not cross-validated are skipped;
+# one aggregation per protocol pools every object's test grasps (graspstab.monitor.fold_warning).
+CV_WARNING = [p for p in CV["early_warning"] if p in CV["protocols"]]
+
+
+def fold_replays(kind, root, fold):
+    """The replay tables or traces of one fold's validation and test objects."""
+    a = fold_assignments()[int(fold)]
+    return [p for p in replay_outputs(kind, root) if a.get(Path(p).parent.name) in ("val", "test")]
+
+
+def fold_model_inputs(root, fold):
+    """Each family's plain-forces run of the fold at its first seed: checkpoint and metrics."""
+    seed = CV["seeds"][0]
+    run = f"{root}/train/crossval/forces/{{m}}/f{fold}/seed{seed}"
+    return {
+        **{f"checkpoint_{m}": run.format(m=m) + "/model.pt" for m in CV["families"]},
+        **{f"metrics_{m}": run.format(m=m) + "/metrics.json" for m in CV["families"]},
+    }
+
+
+for _p in CV_WARNING:
+    _root = CV_ROOTS[_p]
+    _rule = "" if _p == "reference" else f"_{_p}"
+
+    rule:
+        name:
+            f"evaluate_fold_monitor{_rule}"
+        input:
+            unpack(lambda wc, root=_root: fold_model_inputs(root, wc.fold)),
+            tables=lambda wc, root=_root: fold_replays("replays", root, wc.fold),
+            traces=lambda wc, root=_root: fold_replays("traces", root, wc.fold),
+        output:
+            grasps=f"{_root}/monitor/crossval/f{{fold}}/grasps.parquet",
+            thresholds=f"{_root}/monitor/crossval/f{{fold}}/thresholds.json",
+        params:
+            assignment=lambda wc: fold_assignments()[int(wc.fold)],
+            labels=config["labels"] if _p == "reference" else creep_free_labels(),
+            dt=config["replay"]["timestep"],
+            monitor=config["monitor"],
+        threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=60,
+        log:
+            f"results/logs/evaluate_fold_monitor{_rule}/f{{fold}}.log",
+        benchmark:
+            f"results/benchmarks/evaluate_fold_monitor{_rule}/f{{fold}}.tsv"
+        script:
+            "../scripts/evaluate_fold_monitor.py"
+
+    rule:
+        name:
+            f"aggregate_fold_warning{_rule}"
+        input:
+            grasps=expand(f"{_root}/monitor/crossval/f{{fold}}/grasps.parquet",
+                          fold=range(CV["k"])),
+            thresholds=expand(f"{_root}/monitor/crossval/f{{fold}}/thresholds.json",
+                              fold=range(CV["k"])),
+        output:
+            rows=f"{_root}/studies/crossval/early_warning.parquet",
+            summary=f"{_root}/studies/crossval/early_warning.json",
+        params:
+            protocol=_p,
+            bootstrap=CV["bootstrap"],
+        threads: 1
+        resources:
+            mem_mb=1000,
+            runtime=10,
+        log:
+            f"results/logs/aggregate_fold_warning{_rule}/{_p}.log",
+        benchmark:
+            f"results/benchmarks/aggregate_fold_warning{_rule}/{_p}.tsv"
+        script:
+            "../scripts/aggregate_fold_warning.py"
+
+
 # The study's artefacts per protocol, as named inputs of the report (<protocol>_<artefact>).
 CROSSVAL_ARTEFACTS = {
     f"{p}_{k}": (f"{CV_ROOTS[p]}/studies/crossval/{Path(v).name}")
@@ -206,4 +286,8 @@ CROSSVAL_ARTEFACTS = {
         else "results/figures/creep_free/crossval/per_object.png"
     )
     for p in CV["protocols"]
+}
+CROSSVAL_ARTEFACTS |= {
+    f"{p}_early_warning": f"{CV_ROOTS[p]}/studies/crossval/early_warning.json"
+    for p in CV_WARNING
 }

@@ -302,6 +302,13 @@ def aggregate_crossval(
     pooled_oracle = _with_chance(cv.pooled_table(oracle, **b))
     per_object_still = cv.per_object_table(still.filter(pl.col("scorer") != ORACLE), **b)
     paired_still = cv.paired_table(per_object_still, **b)
+    # how far each scorer is from the oracle's recognition of motion, paired over objects
+    oracle_still = still.filter(pl.col("scorer") == ORACLE)
+    paired_oracle = pl.DataFrame()
+    if oracle_still.height and per_object_still.height:
+        both = pl.concat([per_object_still, cv.per_object_table(oracle_still, **b)],
+                         how="diagonal_relaxed")  # fmt: skip
+        paired_oracle = cv.paired_table(both, proxy=ORACLE, **b)
     variants = cv.variant_table(per_object, **b)
     learned = sorted(set(scored["scorer"].to_list()) - {cv.PROXY})
     plain = [s for s in learned if "+" not in s]
@@ -318,6 +325,7 @@ def aggregate_crossval(
         "pooled_still": {r["scorer"]: r for r in pooled_still.iter_rows(named=True)},
         "oracle": pooled_oracle.row(0, named=True) if pooled_oracle.height else None,
         "paired_still": paired_still.to_dicts(),
+        "paired_still_oracle": paired_oracle.to_dicts(),
         "fold_mean": {
             s: {m: float(np.nanmean(g[m].to_numpy())) for m in cv.METRICS}
             | {f"{m}_std": float(np.nanstd(g[m].to_numpy(), ddof=1)) for m in cv.METRICS}

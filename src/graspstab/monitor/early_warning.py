@@ -42,6 +42,8 @@ class ScoredGrasp:
     stable_end: int | None  # holding grasps: end of the stable stretch; None for failing ones
     onset: int | None  # failing after a still period: the onset; else None
     failing: bool  # the grasp fails (after a still period or not)
+    object: str = ""  # the grasp's object and id (the fold-wide tables cluster by object)
+    grasp_id: int = -1
 
 
 def warnings_at(g: ScoredGrasp, threshold: float, debounce: int, length: int) -> np.ndarray:
@@ -94,18 +96,39 @@ def budget_threshold(grasps: Sequence[ScoredGrasp], budget_per_s: float, debounc
             "false_per_s": edges / seconds if seconds > 0 else None}  # fmt: skip
 
 
+def grasp_outcomes(grasps: Sequence[ScoredGrasp], threshold: float, debounce: int, dt: float,
+                   ahead_s: float) -> list[dict[str, Any]]:  # fmt: skip
+    """Per grasp at ``threshold``: for one failing after a still period, its lead (onset minus
+    the first warning at or after the settle index [s], when that precedes the onset, else None)
+    and whether it is at least ``ahead_s``; for one that holds, its false warnings and stable
+    seconds (0 for the others)."""
+    rows: list[dict[str, Any]] = []
+    for g in grasps:
+        lead = None
+        if g.onset is not None:
+            first = rises(warnings_at(g, threshold, debounce, g.end), g.start, g.end)
+            if len(first) and first[0] < g.onset:
+                lead = (g.onset - int(first[0])) * dt
+        edges, seconds = 0, 0.0
+        if g.stable_end is not None and g.stable_end > g.start:
+            w = warnings_at(g, threshold, debounce, g.stable_end)
+            edges = len(rises(w, g.start, g.stable_end))
+            seconds = (g.stable_end - g.start) * dt
+        rows.append({
+            "object": g.object, "grasp_id": g.grasp_id, "failing": g.failing,
+            "after_still": g.onset is not None, "lead_s": lead,
+            "warned_ahead": None if g.onset is None else lead is not None
+            and lead >= ahead_s - 1e-12,
+            "false_warnings": edges, "stable_seconds": seconds,
+        })  # fmt: skip
+    return rows
+
+
 def lead_times(grasps: Sequence[ScoredGrasp], threshold: float, debounce: int,
                dt: float) -> list[float | None]:  # fmt: skip
-    """Per grasp failing after a still period: onset minus the first warning at or after its
-    settle index [s] when that precedes the onset, else None."""
-    out: list[float | None] = []
-    for g in grasps:
-        if g.onset is None:
-            continue
-        w = warnings_at(g, threshold, debounce, g.end)
-        first = rises(w, g.start, g.end)
-        out.append((g.onset - int(first[0])) * dt if len(first) and first[0] < g.onset else None)
-    return out
+    """Per grasp failing after a still period: its lead [s] (:func:`grasp_outcomes`), or None."""
+    return [r["lead_s"] for r in grasp_outcomes(grasps, threshold, debounce, dt, 0.0)
+            if r["after_still"]]  # fmt: skip
 
 
 def early_warning(val: Sequence[ScoredGrasp], test: Sequence[ScoredGrasp], *,
@@ -113,11 +136,12 @@ def early_warning(val: Sequence[ScoredGrasp], test: Sequence[ScoredGrasp], *,
                   dt: float) -> dict[str, Any]:  # fmt: skip
     """One monitor's early-warning figures (module docstring)."""
     choice = budget_threshold(val, budget_per_s, debounce, dt)
-    t = choice["threshold"]
-    leads = lead_times(test, t, debounce, dt)
+    rows = grasp_outcomes(test, choice["threshold"], debounce, dt, ahead_s)
+    leads = [r["lead_s"] for r in rows if r["after_still"]]
     defined = [x for x in leads if x is not None]
-    ahead = sum(x >= ahead_s - 1e-12 for x in defined)
-    edges, seconds = false_rate(test, t, debounce, dt)
+    ahead = sum(bool(r["warned_ahead"]) for r in rows)
+    edges = sum(r["false_warnings"] for r in rows)
+    seconds = sum(r["stable_seconds"] for r in rows)
     return {
         "threshold": choice,
         "test": {

@@ -118,7 +118,8 @@ def scored_grasp(
     stable_end = None if episode.fails else max(episode.start, episode.end - o - h)
     return ScoredGrasp(split=episode.split, frames=frames, scores=trace.prob[frames],
                        start=episode.start, end=episode.end, stable_end=stable_end,
-                       onset=episode.still_onset, failing=episode.fails)  # fmt: skip
+                       onset=episode.still_onset, failing=episode.fails,
+                       object=episode.object, grasp_id=episode.grasp_id)  # fmt: skip
 
 
 def evaluate_monitors(

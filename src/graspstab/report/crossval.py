@@ -158,6 +158,8 @@ def _protocol_parts(
     )
     if "pooled_still" in summary:
         parts += _still_parts(protocol, summary, files, level, name)
+    if files.get("early_warning") is not None:
+        parts += _warning_parts(read_json(Path(files["early_warning"])), name)
     if "answer_variants" in summary and any("+" in s for s in scorers):
         parts.append(f"<p>With the fairness variants: {H.esc(summary['answer_variants'])}</p>")
     if summary.get("variants"):
@@ -308,10 +310,77 @@ def _still_parts(
                 f"still-now windows ({name})",
             )
         )
+    if summary.get("paired_still_oracle"):
+        parts.append(_oracle_table(summary["paired_still_oracle"], level, name))
     if files.get("per_object_still") is not None:
         parts.append(_per_object_still(read_parquet(Path(files["per_object_still"])), level,
                                        name))  # fmt: skip
     return parts
+
+
+def _oracle_table(rows: Any, level: int, name: str) -> str:
+    """Each scorer minus the persistence oracle on the still-now windows, paired over objects:
+    how much of what motion itself tells a scorer does not reach."""
+    named = {"learned better": "scorer better", "proxy better": "oracle better"}
+    prows = [[r["scorer"], r["metric"].upper(), *_comparison_cells(r)[:-1],
+              named.get(r["verdict"], r["verdict"])] for r in rows]  # fmt: skip
+    return H.table(
+        ["scorer", "metric", "objects", f"scorer - oracle (points) [{level} % CI]",
+         "wins / losses / ties", "sign test p", "verdict"],
+        prows,
+        caption=f"Paired comparison with the {ORACLE_LABEL} over test objects, on the still-now "
+        f"windows ({name}): the oracle reads the object's own motion, so a scorer below it "
+        "misses what the motion would tell",
+    )  # fmt: skip
+
+
+def _warning_parts(summary: Mapping[str, Any], name: str) -> list[str]:
+    """Grasp-level early warning over the folds (graspstab.monitor.fold_warning): each fold's
+    monitors at its validation budget threshold, every object's test grasps pooled."""
+    level = round(100 * summary["bootstrap"]["level"])
+    mons = summary["monitors"]
+    paired = {r["monitor"]: r for r in summary.get("paired", [])}
+    k = summary["folds"]
+    rows = []
+    for m in [*sorted(n for n in mons if n != "proxy"), *(["proxy"] if "proxy" in mons else [])]:
+        r, t = mons[m], summary["thresholds"].get(m, {})
+        p = paired.get(m)
+        share = r["warned_ahead_share"]
+        rows.append([
+            m, f"{t.get('at_floor', 0)} / {t.get('never_warns', 0)} of {k}", r["grasps"],
+            r["failing"], r["failing_after_still"], r["warned_ahead"],
+            "undefined" if share is None else _pct(share, r["warned_ahead_share_lo"],
+                                                    r["warned_ahead_share_hi"]),
+            "—" if r["median_lead_s"] is None else f"{1000 * r['median_lead_s']:.0f}",
+            "undefined" if r["false_per_s"] is None else
+            f"{r['false_per_s']:.3f} [{r['false_per_s_lo']:.3f}, {r['false_per_s_hi']:.3f}]",
+            "—" if p is None or p["diff"] is None else
+            f"{_pts(p['diff'], p['lo'], p['hi'])} ({p['verdict']})",
+        ])  # fmt: skip
+    budget, ahead = summary["budget_per_s"], summary["ahead_s"]
+    return [
+        f'<h4 id="crossval-warning-{H.esc(summary["protocol"])}">Early warning over the folds '
+        f"({name})</h4>",
+        f'<p class="answer"><strong>{H.esc(summary["answer"])}</strong></p>',
+        "<p>Each fold's monitors (its own plain-forces models, streamed as deployed, and the "
+        "friction-ratio proxy) take the lowest threshold whose false warnings on the fold's "
+        f"validation grasps that hold stay within {budget:g} per stable grasp-second (one per "
+        f"{1 / budget:.0f} s), and run at it on the fold's test grasps, armed at the settle "
+        "index. A grasp fails after a still period when the failure anatomy's onset follows at "
+        "least one observation window without an eq. 23 step: only those can be foreseen. "
+        f"Warned ahead: the first warning at least {1000 * ahead:.0f} ms before the onset. "
+        f"Intervals: {level} % bootstrap over objects (every monitor on the same draw, so the "
+        "differences are paired).</p>",
+        H.table(
+            ["monitor", "threshold at grid floor / never warns (folds)", "test grasps", "failing",
+             "failing after a still period", "warned ahead", f"share warned ahead (%) [{level} % "
+             "CI]", "median lead of the warned (ms)",
+             f"false warnings per stable s, test [{level} % CI]",
+             f"minus proxy, share (points) [{level} % CI]"],
+            rows,
+            caption=f"Grasp-level early warning, {k} folds, every object's test grasps ({name})",
+        ),  # fmt: skip
+    ]
 
 
 def _per_object_still(per_object: Any, level: int, name: str) -> str:

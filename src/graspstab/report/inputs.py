@@ -82,8 +82,8 @@ def benchmark_wildcards(
 def crossval_wildcards(
     config: Mapping[str, Any], objects: Sequence[str]
 ) -> dict[str, list[dict[str, Any]]]:
-    """The k-fold study's training jobs per protocol (crossval.smk's crossval_keys), and its
-    per-protocol rules' (no wildcards)."""
+    """The k-fold study's training jobs per protocol (crossval.smk's crossval_keys), its folds'
+    early-warning jobs, and its per-protocol rules' (no wildcards)."""
     cv = config["crossval"]
     keys: list[dict[str, Any]] = []
     if cv["enabled"]:
@@ -92,10 +92,15 @@ def crossval_wildcards(
         ]
         keys = [{"variant": v, "model": m, "fold": k, "seed": s} for v, m in pairs
                 for k in range(cv["k"]) for s in cv["seeds"]]  # fmt: skip
+    folds = {"fold": list(range(cv["k"]))}
+    warned = [p for p in cv["early_warning"] if p in cv["protocols"]] if cv["enabled"] else []
     return {
         "train_fold_model": keys,
         "train_fold_model_creep_free": keys if "creep_free" in cv["protocols"] else [],
-    }
+        # the folds' early warning (crossval.early_warning): one job per fold and protocol
+        **{"evaluate_fold_monitor" + ("" if p == "reference" else f"_{p}"): folds
+           for p in warned},
+    }  # fmt: skip
 
 
 def closed_loop_wildcards(
