@@ -90,3 +90,22 @@ def test_dataset_windows_labels_splits_and_normalisation(tmp_path: Path) -> None
     again = label_windows(_replays(tmp_path / "b", 1.0), tmp_path / "ds3", LABELS, splits, 0.2, DT,
                           0)  # fmt: skip
     assert again["start"].to_list() == index["start"].to_list()
+
+
+def test_the_event_form_reads_what_the_failure_needs(tmp_path: Path) -> None:
+    """labels.form event through label_windows (the rule's entry), under eq. 23's source: the
+    anatomy's failure reads positions, which that source alone does not ask for. The test
+    object slides away from 4 s (the position follows its velocity): its positive windows are
+    those whose target interval holds the onset."""
+    rng = np.random.default_rng(0)
+    tr = _trace(8000, 11000, 1.0, rng)
+    tr["position"] = np.cumsum(tr["velocity"].astype(np.float64) * DT, axis=0).astype(np.float32)
+    held = _trace(12000, 12000, 1.0, rng)
+    replays = [_write_replays(tmp_path, "obj_train", 0, {0: held}),
+               _write_replays(tmp_path, "obj_test", 0, {7: tr})]  # fmt: skip
+    labels = {**LABELS, "form": "event", "windows_per_grasp": 10_000}
+    index = label_windows(replays, tmp_path / "ds", labels, {"obj_train": "train",
+                          "obj_test": "test"}, 0.2, DT, 0)  # fmt: skip
+    test = index.filter(pl.col("object") == "obj_test")
+    assert test.height and test["label"].sum() > 0
+    assert index.filter(pl.col("object") == "obj_train")["label"].sum() == 0

@@ -20,6 +20,7 @@ from graspstab.figures.artefacts import StudyArtefacts
 from graspstab.figures.presentation import ORACLE, motion_reason
 from graspstab.replay.outcomes import replay_outcomes
 from graspstab.report import creep_free as cf
+from graspstab.report import html as H
 from graspstab.report.crossval import crossval_section, still_answer
 from graspstab.report.headline import still_rows
 from graspstab.report.sensing import audit_section
@@ -172,6 +173,30 @@ def test_crossval_still_now_undefined_and_the_jobs_answer(tmp_path: Path) -> Non
             "becomes unstable") in html  # fmt: skip
     files, config = _crossval(tmp_path, still=True, answer_still="Planted still-now answer.")
     assert "<strong>Planted still-now answer.</strong>" in crossval_section(files, config)
+
+
+def test_crossval_says_what_the_anatomy_misses_only_where_the_models_do_not_win(
+    tmp_path: Path,
+) -> None:
+    """Where a family does not beat the proxy on still-now windows, the protocol's failure
+    anatomy says how its failures begin (counts and shares from the summary); where every
+    family wins, nothing is added."""
+    from graspstab.report.anatomy import missing_signal
+
+    anatomy = tmp_path / "anatomy.json"
+    write_json(anatomy, {"protocol": "perturb", "failed": 20, "types": {
+        "fingertip_slip": 5, "link_slip": 12, "compliance": 2, "rotation": 1,
+        "servo_saturation": 0}})  # fmt: skip
+    text = missing_signal(read_json(anatomy))
+    assert "of the 20 grasps that fail after settling, 5 (25 %) fingertip slip" in text
+    assert "15 (75 %) begin where no sensor is" in text
+    lost = [_paired("gru", "auprc", 0.0), _paired("gru", "auroc", 0.0)]
+    files, config = _crossval(tmp_path, still=True, paired_still=lost)
+    html = crossval_section(files, config, {"reference_summary": anatomy})
+    assert H.esc(text) in html
+    files, config = _crossval(tmp_path, still=True)  # gru wins on still-now windows
+    assert "begin where no sensor is" not in crossval_section(
+        files, config, {"reference_summary": anatomy})
 
 
 def test_crossval_without_the_still_now_keys(tmp_path: Path) -> None:

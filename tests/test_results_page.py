@@ -80,6 +80,23 @@ def test_time_and_memory_logs(tmp_path: Path) -> None:
     assert rp.memory_above_idle(mem) == (800.0, 1200.0)
 
 
+def test_a_run_in_legs_sums_their_wall_and_cpu_and_says_so(tmp_path: Path) -> None:
+    bench = tmp_path / "results" / "benchmarks" / "replay_grasps"
+    bench.mkdir(parents=True)
+    (bench / "a.tsv").write_text("s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\t"
+                                 "io_out\tmean_load\tcpu_time\n60.0\t0:01:00\t500\t1\t1\t1\t"
+                                 "0\t0\t100\t59\n")  # fmt: skip
+    logs = []
+    for i, (wall, user) in enumerate((("1:00:00", 3000.0), ("30:00", 1500.0))):
+        logs.append(tmp_path / f"leg{i}.log")
+        logs[-1].write_text(f"\tUser time (seconds): {user}\n\tSystem time (seconds): 0\n"
+                            f"\tElapsed (wall clock) time (h:mm:ss or m:ss): {wall}\n")
+    cost = rp._cost(tmp_path, logs, None)
+    assert cost["wall_s"] == 5400.0 and cost["cpu_s"] == 4500.0
+    assert cost["legs_wall_s"] == [3600.0, 1800.0] and cost["job_s"] == 60.0
+    assert "legs_wall_s" not in rp._cost(tmp_path, logs[0], None)
+
+
 @pytest.mark.workflow
 def test_record_of_the_toy_run_holds_the_report_figures(run) -> None:
     workdir, _, config = run

@@ -92,7 +92,10 @@ def label_windows(
     rows: list[dict[str, Any]] = []
     chunks: list[np.ndarray] = []
     motion: list[np.ndarray] = []
-    wanted = dict.fromkeys(("velocity", "min_distance", *CHANNELS, *source_channels(labels)))
+    # the event form reads the failure anatomy's onset (labels.anatomy.failure: position)
+    event = ("position",) if labels.get("form", "share") == "event" else ()
+    wanted = dict.fromkeys(("velocity", "min_distance", *CHANNELS, *source_channels(labels),
+                            *event))  # fmt: skip
     for g in replay_grasps(replays, splits, tuple(wanted)):
         tr = g.traces
         starts, r, y, _ = grasp_windows(tr, g.object, g.grasp_id, labels, window_s, dt, seed)

@@ -24,6 +24,31 @@ TYPE_NAMES = {
 PROTOCOLS = (("reference", "main run"), ("creep_free", "creep-free benchmark"))
 
 
+def missing_signal(summary: Mapping[str, Any]) -> str | None:
+    """What the failure anatomy says the fingertip forces cannot see ahead of a failure: how the
+    grasps that fail after settling begin (all splits). None when no grasp fails."""
+    types = summary.get("types") or {}
+    failed = int(summary.get("failed") or 0)
+    if not failed:
+        return None
+    def part(key: str) -> str:  # noqa: E306
+        n = int(types.get(key, 0))
+        return f"{n} ({100 * n / failed:.0f} %) {TYPE_NAMES[key]}"
+    unseen = int(types.get("link_slip", 0)) + int(types.get("compliance", 0)) \
+        + int(types.get("rotation", 0))
+    return (
+        f"The failure anatomy ({summary.get('protocol', '?')} load) says what a fingertip-force "
+        f"signal has to go on: of the {failed} grasps that fail after settling, "
+        f"{part('fingertip_slip')}, {part('link_slip')}, {part('compliance')}, "
+        f"{part('rotation')} and {part('servo_saturation')}. The fingertip sensors see the first "
+        f"kind directly; {unseen} ({100 * unseen / failed:.0f} %) begin where no sensor is (slip "
+        "at the palm or the phalanges, rotation, or the grasp yielding without sliding) and "
+        "reach the fingertip forces only through the load they share. Sensing at those links, "
+        "or loads that the fingertips carry, is what the anatomy suggests is missing from the "
+        "signal."
+    )
+
+
 def _row(name: str, s: dict[str, Any]) -> list[Any]:
     q = s["onset_quartiles_s"]
     onset = "n/a" if q[1] is None else f"{q[1]:.2f} ({q[0]:.2f}-{q[2]:.2f})"

@@ -13,6 +13,7 @@ from graspstab.common.io import read_json, read_parquet
 from graspstab.figures.presentation import ORACLE, ORACLE_LABEL, motion_reason
 from graspstab.report import html as H
 from graspstab.report import still_now as S
+from graspstab.report.anatomy import missing_signal
 
 PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
 VARIANTS = {
@@ -463,8 +464,11 @@ def _threshold_table(summary: Mapping[str, Any], name: str) -> str:
     )
 
 
-def crossval_section(crossval: Mapping[str, Any] | None, config: Mapping[str, Any]) -> str:
-    """The section, one part per protocol; a note when the study is off."""
+def crossval_section(crossval: Mapping[str, Any] | None, config: Mapping[str, Any],
+                     anatomy: Mapping[str, Path] | None = None) -> str:  # fmt: skip
+    """The section, one part per protocol; a note when the study is off. ``anatomy``: the
+    failure anatomy's summaries (``<protocol>_summary``), which say what the signal misses where
+    the learned models do not beat the proxy on still-now windows or in early warning."""
     parts = [H.heading(2, "crossval", "Generalisation across objects")]
     cv = config.get("crossval", {})
     if not crossval or not cv.get("enabled"):
@@ -498,4 +502,22 @@ def crossval_section(crossval: Mapping[str, Any] | None, config: Mapping[str, An
         }
         if "summary" in files:
             parts += _protocol_parts(protocol, files, config)
+            summary = (anatomy or {}).get(f"{protocol}_summary")
+            if summary is not None and not _learned_wins(files):
+                text = missing_signal(read_json(Path(summary)))
+                if text:
+                    parts.append(f"<p>{H.esc(text)}</p>")
     return "\n".join(parts)
+
+
+def _learned_wins(files: Mapping[str, Any]) -> bool:
+    """Whether every plain family beats the proxy on still-now windows (paired, test AUPRC) and,
+    where it ran, in early warning over the folds."""
+    summary = read_json(Path(files["summary"]))
+    still = [r for r in summary.get("paired_still", [])
+             if r["metric"] == "auprc" and "+" not in r["scorer"]]  # fmt: skip
+    wins = bool(still) and all(r["verdict"] == "learned better" for r in still)
+    if files.get("early_warning") is not None:
+        paired = read_json(Path(files["early_warning"])).get("paired", [])
+        wins = wins and bool(paired) and all(r["verdict"] == "learned better" for r in paired)
+    return wins

@@ -256,10 +256,14 @@ def crossval_lines(rec: Mapping[str, Any]) -> list[str]:
 
 
 def _cost(
-    workdir: Path, time_log: Path | None, mem_log: Path | None, since: float | None = None
-) -> dict[str, Any]:
+    workdir: Path, time_log: Path | Sequence[Path] | None, mem_log: Path | None,
+    since: float | None = None,
+) -> dict[str, Any]:  # fmt: skip
     """Job-seconds by rule from the benchmark files (only those written after ``since``, a Unix
-    time, when given: the jobs of a run that reused another's), wall time, memory and disk."""
+    time, when given: the jobs of a run that reused another's), wall time, memory and disk.
+    ``time_log``: one ``/usr/bin/time -v`` log, or one per leg of a run stopped and resumed in
+    the same folder (their wall and CPU seconds are summed: an upper bound on one uninterrupted
+    run, since jobs a stop cut short ran again)."""
     root = workdir / "results" / "benchmarks"
     benchmarks = {
         d.name: [p for p in sorted(d.glob("*.tsv")) if since is None or p.stat().st_mtime >= since]
@@ -279,9 +283,15 @@ def _cost(
             for name in ("results", ".graspstab-cache", "resources", ".venv")
         },
     }
-    if time_log is not None:
-        cost["wall_s"], cost["cpu_s"] = wall_and_cpu(time_log)
-        text = time_log.read_text(errors="replace")
+    logs = [time_log] if isinstance(time_log, Path) else list(time_log or [])
+    if logs:
+        legs = [wall_and_cpu(p) for p in logs]
+        walls, cpus = [w for w, _ in legs], [c for _, c in legs]
+        cost["wall_s"] = None if None in walls else sum(walls)  # type: ignore[arg-type]
+        cost["cpu_s"] = None if None in cpus else sum(cpus)  # type: ignore[arg-type]
+        if len(logs) > 1:
+            cost["legs_wall_s"] = walls
+        text = logs[-1].read_text(errors="replace")
         done = re.findall(r"(\d+) of (\d+) steps \(100%\) done", text)
         cost["dag_jobs"] = int(done[-1][1]) if done else None
         rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", text)
@@ -302,7 +312,7 @@ def _version(repo: Path) -> str:
 def record(
     workdir: Path,
     command: str,
-    time_log: Path | None = None,
+    time_log: Path | Sequence[Path] | None = None,
     mem_log: Path | None = None,
     install_s: float | None = None,
     repo: Path | None = None,
@@ -436,6 +446,10 @@ def _run_lines(rec: Mapping[str, Any]) -> list[str]:
         f"**Cost.** Install {_minutes(rec.get('install_s'))}; the command "
         f"**{_minutes(c.get('wall_s'))}** wall, {c['jobs']} jobs, {c['job_s']:,.0f} job-seconds"
         + (f" ({busy:.2f} cores busy)" if busy else "")
+        + (f" (in {len(c['legs_wall_s'])} legs on the same folder, "
+           f"{' + '.join(_minutes(w) for w in c['legs_wall_s'])}: the sum bounds one "
+           "uninterrupted run from above, as the jobs a stop cut short ran again)"
+           if c.get("legs_wall_s") else "")
         + (f"; the machine's used memory peaked **{_mb(c['mem_peak_mb'])}** above idle"
            if c.get("mem_peak_mb") is not None else "")
         + f", the largest job {_mb(max((r['peak_rss_mb'] or 0) for r in c['rules']))} RSS; "
@@ -593,6 +607,9 @@ def profile_block(rec: Mapping[str, Any]) -> str:
     parts = [
         "\n".join(_run_lines(rec)),
         _cost_table(rec),
+        *([f"**On a cluster**: `{rec['cluster']['command']}` projects this run's own job graph "
+           "and job timings onto N nodes:\n\n" + rec["cluster"]["markdown"].strip()]
+          if rec.get("cluster") else []),
         _datasets_line(rec),
         "**Headline** (chapter-4 figures beside the reference's):",
         _headline_table(rec),
@@ -876,7 +893,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     rec = sub.add_parser("record", help="write a finished run's record (JSON)")
     rec.add_argument("workdir", type=Path)
     rec.add_argument("--command", required=True, help="the snakemake command the run used")
-    rec.add_argument("--time-log", type=Path, help="/usr/bin/time -v output of that command")
+    rec.add_argument("--time-log", type=Path, nargs="+",
+                     help="/usr/bin/time -v output of that command (several: the legs of a run "
+                          "stopped and resumed in the same folder, summed)")  # fmt: skip
     rec.add_argument("--mem-log", type=Path, help="'<unix time> <used MB>' samples (free -m)")
     rec.add_argument("--install-s", type=float, help="seconds the install line took")
     rec.add_argument("--repo", type=Path, help="the checkout that ran it (default: workdir)")
@@ -884,6 +903,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     rec.add_argument("--since", type=float,
                      help="count only jobs whose benchmark file is newer (Unix time): a run "
                           "that reused an earlier run's outputs in the same folder")  # fmt: skip
+    rec.add_argument("--cluster", type=Path,
+                     help="benchmarks/project_cluster.py's output for this run (markdown)")
+    rec.add_argument("--cluster-command", default="",
+                     help="the command that printed it (shown beside the projection)")
     rec.add_argument("--out", type=Path, help="record file (default: stdout)")
     pro = sub.add_parser("projection", help="record the thesis projection of a recorded run")
     pro.add_argument("markdown", type=Path, help="benchmarks/project_thesis.py's output")
@@ -897,6 +920,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.cmd == "record":
         data = record(args.workdir, args.command, args.time_log, args.mem_log, args.install_s,
                       args.repo, args.note, args.since)  # fmt: skip
+        if args.cluster is not None:
+            data["cluster"] = {"command": args.cluster_command,
+                               "markdown": args.cluster.read_text()}  # fmt: skip
         text = json.dumps(data, indent=1, sort_keys=True, default=str) + "\n"
         if args.out is None:
             sys.stdout.write(text)

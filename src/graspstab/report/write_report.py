@@ -120,7 +120,7 @@ def write_report(
         monitor_section(monitor, ramp_monitor),
         sensing_section(sensing, config),
         audit_section(audit),
-        crossval_section(crossval, config),
+        crossval_section(crossval, config, anatomy),
         closed_loop_section(closed_loop, config),
         *protocols_parts(config, creep_free, dataset_summary, speeds_summary, replay_outcomes,
                          learning, figures),  # fmt: skip
