@@ -166,7 +166,8 @@ def warning_answer(summary: Mapping[str, Any], protocol: str) -> str:
         for r in summary["paired"] if r["diff"] is not None and math.isfinite(r["lo"])
     )  # fmt: skip
     return (
-        f"Under the {protocol} protocol, over {summary['folds']} folds of unseen objects at a "
+        f"Under the {protocol} protocol, over {summary['folds']} "
+        f"fold{'s' if summary['folds'] != 1 else ''} of unseen objects at a "
         f"validation budget of one false warning per {1 / budget:.0f} stable grasp-seconds, "
         f"{head}: warned at least {1000 * ahead:.0f} ms before the onset, of the grasps failing "
         f"after a still period, " + ", ".join(share(n) for n in [*learned, PROXY] if n in mons)

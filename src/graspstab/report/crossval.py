@@ -379,7 +379,8 @@ def _warning_parts(summary: Mapping[str, Any], name: str) -> list[str]:
              f"false warnings per stable s, test [{level} % CI]",
              f"minus proxy, share (points) [{level} % CI]"],
             rows,
-            caption=f"Grasp-level early warning, {k} folds, every object's test grasps ({name})",
+            caption=f"Grasp-level early warning, {k} fold{'s' if k != 1 else ''}, every "
+            f"object's test grasps ({name})",
         ),  # fmt: skip
     ]
 
