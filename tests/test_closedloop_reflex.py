@@ -118,6 +118,29 @@ def test_warnings_before_the_arm_step_are_ignored() -> None:
     np.testing.assert_allclose(got, expected(800, 322), atol=1e-12)
 
 
+def test_a_fresh_reflex_ignores_a_warning_up_at_arming_until_it_drops_and_rises() -> None:
+    """Armed at 300 inside an unstable span [137, 400): the warning up at arming never fires;
+    it drops (stable scores from 403), and the span from 597 raises a new one at 603, which
+    fires 22 steps later. A warning that rises only after arming fires at once."""
+    normal, shear = planted(1000, [(137, 400), (597, 1000)])
+    r = GripReflex(ReflexParams(0.2, 4.0, 0.01), CLOSING, np.full(NU, 10.0), DT,
+                   monitor=monitor(), latency_s=0.0003, arm_step=300, fresh=True)  # fmt: skip
+    got = drive(r, normal, shear, 1000)
+    assert r.warn_frames == [603] and r.on_steps == [625]
+    np.testing.assert_allclose(got, expected(1000, 625), atol=1e-12)
+    normal, shear = planted(1000, [(597, 1000)])  # nothing up at arming: the first rise fires
+    r = GripReflex(ReflexParams(0.2, 4.0, 0.01), CLOSING, np.full(NU, 10.0), DT,
+                   monitor=monitor(), latency_s=0.0003, arm_step=300, fresh=True)  # fmt: skip
+    drive(r, normal, shear, 1000)
+    assert r.warn_frames == [603] and r.on_steps == [625]
+    # a warning down exactly at arming counts as down: the next rise fires
+    normal, shear = planted(1000, [(137, 290), (597, 1000)])
+    r = GripReflex(ReflexParams(0.2, 4.0, 0.01), CLOSING, np.full(NU, 10.0), DT,
+                   monitor=monitor(), latency_s=0.0003, arm_step=300, fresh=True)  # fmt: skip
+    drive(r, normal, shear, 1000)
+    assert r.warn_frames == [603]
+
+
 def test_calm_release_returns_the_grip_and_a_new_warning_tightens_again() -> None:
     # unstable scores at 143 .. 293, stable from 303 on: down 20 frames (0.01 s) at 322, so the
     # release acts from 322 + 1 + 21 = 344; a second plant from 600 warns at 603, acts at 625

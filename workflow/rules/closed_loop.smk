@@ -6,6 +6,7 @@
 # protocol's export (monitor.smk) and runs under the reference protocol only.
 
 from graspstab.closedloop.closed_loop import protocol_params
+from graspstab.closedloop.policies import policy_names
 
 CL = config["closed_loop"]
 CL_MS = ms_of(CL["window_s"])
@@ -97,7 +98,9 @@ rule aggregate_closed_loop:
         tradeoff=f"{CL_SUMMARY}/tradeoff.parquet",
         summary=f"{CL_SUMMARY}/summary.json",
     params:
-        policies=lambda wc: closed_loop_policies(wc.protocol),
+        # the row labels the object jobs write: each oracle lead, each monitor's shuffled control
+        policies=lambda wc: policy_names(closed_loop_policies(wc.protocol), CL["oracle_leads_s"],
+                                         CL["shuffled"]),
         bootstrap=CL["bootstrap"],
     threads: 1
     resources:

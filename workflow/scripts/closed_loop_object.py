@@ -28,6 +28,7 @@ def compute() -> None:
         names, checkpoints=checkpoints, pick_onnx=inputs.get("pick"),
         proxy_dataset=Path(inputs["index"]).parent if "index" in inputs else None,
         threshold=dict(sm.params.threshold), latency_table=inputs["latency"],
+        oracle_leads_s=list(cl["oracle_leads_s"]), shuffled=bool(cl["shuffled"]),
     )  # fmt: skip
     monitor = dict(sm.params.monitor)
     reflex = ReflexParams(**cl["reflex"])
@@ -39,8 +40,10 @@ def compute() -> None:
         sm.wildcards.object, Path(sm.input.object_xml).parent, Path(sm.input.hand[0]).parent,
         list(sm.input.grasps), dict(sm.params.replay), dict(sm.params.labels), policies,
         reflex, stride=int(monitor["stride"]),
-        debounce=int(monitor["debounce"]), arm_s=float(cl["arm_s"]),
-        oracle_lead_s=cl["oracle_lead_s"], max_grasps=cl["grasps"], variants=variants,
+        debounce=int(monitor["debounce"]), arm_s=float(cl["arm_s"]), arming=cl["arming"],
+        window_steps=round(float(cl["window_s"]) / float(sm.params.replay["timestep"])),
+        fresh=bool(cl["fresh"]), shuffle_seed=int(cl["shuffle_seed"]),
+        max_grasps=cl["grasps"], variants=variants,
         timeline=sm.params.timeline,
     )  # fmt: skip
     thresholds = {p.name: p.threshold for p in policies if p.threshold is not None}

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+import zlib
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,7 @@ import mujoco
 import numpy as np
 import polars as pl
 
-from graspstab.closedloop.outcome import baseline_of, outcome
+from graspstab.closedloop.outcome import Baseline, baseline_of, outcome
 from graspstab.closedloop.policies import Policy, actuator_axes, make_reflex
 from graspstab.closedloop.reflex import GripReflex, ReflexParams
 from graspstab.closedloop.sweep import Variant, default_variant
@@ -111,6 +112,37 @@ def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_i
     )  # fmt: skip
 
 
+def arm_step_of(base: Baseline, arming: str, arm_s: float, window_steps: int, dt: float) -> int:
+    """Where every monitor of one grasp is armed (and ``always`` fires): ``fixed``, ``arm_s``
+    after placement; ``settle``, the no-reflex run's settle index plus the monitored window less
+    one step (the first window counted starts at settling, as every training window does), and
+    never before ``arm_s``. A grasp without a usable interval is armed at ``arm_s``."""
+    fixed = steps_of(arm_s, dt)
+    if arming == "fixed" or not base.usable:
+        return fixed
+    if arming != "settle":
+        raise ValueError(f"closed_loop.arming must be settle or fixed, got {arming!r}")
+    return max(fixed, base.start + max(1, window_steps) - 1)
+
+
+def load_step_of(scene: Any, params: dict[str, Any], object_id: str, grasp_id: int) -> int | None:
+    """The step the protocol's load starts on this grasp (None under gravity alone): drawn from
+    the grasp's own stream, as the replay draws it (call after placing the grasp)."""
+    load = grasp_load(params, scene, scene.model.opt.gravity.copy(), object_id, grasp_id)
+    return None if load is None else round(float(load.start_s) / float(params["timestep"]))
+
+
+def shuffled_steps(offsets: Sequence[int | None], arms: Sequence[int], seed: int,
+                   key: str) -> list[int | None]:  # fmt: skip
+    """A shuffled control's step per grasp: a permutation (seeded by ``seed`` and ``key``) deals
+    each grasp another grasp's tightening offset from arming (None: that monitor never
+    tightened there), added to this grasp's own arming step."""
+    rng = np.random.default_rng([int(seed), zlib.crc32(key.encode())])
+    order = rng.permutation(len(offsets))
+    return [None if offsets[j] is None else arms[i] + int(offsets[j])
+            for i, j in enumerate(order)]  # fmt: skip
+
+
 def closed_loop_object(
     object_id: str,
     object_dir: str | Path,
@@ -124,6 +156,10 @@ def closed_loop_object(
     stride: int = 1,
     debounce: int = 1,
     arm_s: float = 0.0,
+    arming: str = "fixed",
+    window_steps: int = 1,
+    fresh: bool = False,
+    shuffle_seed: int = 0,
     oracle_lead_s: float | None = None,
     grasp_ids: Sequence[int] | None = None,
     max_grasps: int | None = None,
@@ -132,14 +168,17 @@ def closed_loop_object(
     timeline: str | None = None,
 ) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
     """Every grasp (or ``grasp_ids``; at most ``max_grasps``, the lowest ids) of ``grasp_table``
-    (one shard table or several) under every policy (with ``reflex``, ``debounce`` and
-    ``arm_s``), then under every ``variants`` entry (``closedloop.sweep``). Returns one row per
-    grasp and policy or variant (``closedloop.outcome``'s columns, the variant's parameter and
-    value; no wall time: that differs on every run, so only the log has it) and, with
-    ``keep_traces``, each run's traces keyed (grasp id, label);
-    without it the traces are dropped after each grasp (an object's runs would otherwise all
-    stay in memory). ``timeline`` (a label): the traces returned are instead the no-reflex and
-    that label's runs of the one grasp that shows the reflex best (``timeline_rank``)."""
+    (one shard table or several) under every policy (with ``reflex``, ``debounce``, armed by
+    ``arming`` with ``arm_s`` and ``window_steps``, ``fresh``: :func:`arm_step_of`), then under
+    every ``variants`` entry (``closedloop.sweep``). Shuffled controls run last, once every
+    grasp's monitor runs have given their tightening times (:func:`shuffled_steps`, seeded by
+    ``shuffle_seed`` and the object and monitor). Returns one row per grasp and policy or
+    variant (``closedloop.outcome``'s columns, the variant's parameter and value, the arming
+    step's time; no wall time: that differs on every run, so only the log has it) and, with
+    ``keep_traces``, each run's traces keyed (grasp id, label); without it the traces are
+    dropped once the grasp's rows are made. ``timeline`` (a label): the traces returned are
+    instead the no-reflex and that label's runs of the one grasp that shows the reflex best
+    (``timeline_rank``)."""
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
     slip = slip_sampler(scene, params)
@@ -153,70 +192,108 @@ def closed_loop_object(
     if max_grasps is not None:
         grasps = grasps.sort("grasp_id").head(max_grasps)
 
-    runs_of = [default_variant(p, reflex, debounce, arm_s) for p in policies
-               if p.kind != "none"] + list(variants)  # fmt: skip
-    labels_seen = [v.label for v in runs_of]
+    direct = [p for p in policies if p.kind not in ("none", "shuffled")]
+    later = [p for p in policies if p.kind == "shuffled"]
+    runs_of = [default_variant(p, reflex, debounce, arm_s) for p in direct] + list(variants)
+    last = [default_variant(p, reflex, debounce, arm_s) for p in later]
+    labels_seen = [v.label for v in [*runs_of, *last]]
     if len(set(labels_seen)) != len(labels_seen) or "none" in labels_seen:
         raise ValueError(f"closed loop: run labels must be unique and not 'none': {labels_seen}")
+    monitors = {v.label for v in runs_of if v.policy.kind == "monitor"}
+    unknown = sorted({v.policy.of for v in last} - monitors)
+    if unknown:
+        raise ValueError(f"closed loop: shuffled controls of {unknown}, which are not monitor "
+                         "policies of this run")  # fmt: skip
 
-    def reflex_for(v: Variant, onset: int | None) -> GripReflex | None:
-        return make_reflex(v.policy, v.reflex, closing, upper, dt, onset=onset,
-                           oracle_lead_steps=steps_of(lead, dt), arm_step=steps_of(v.arm_s, dt),
-                           stride=stride, debounce=v.debounce)  # fmt: skip
+    def reflex_for(v: Variant, st: dict[str, Any], fire_step: int | None = None) -> Any:
+        arm = arm_step_of(st["base"], arming, v.arm_s, window_steps, dt)
+        return make_reflex(v.policy, v.reflex, closing, upper, dt, onset=st["base"].onset,
+                           oracle_lead_steps=steps_of(lead, dt), arm_step=arm, stride=stride,
+                           debounce=v.debounce, fresh=fresh, load_step=st["load_step"],
+                           fire_step=fire_step)  # fmt: skip
+
+    def run(v: Variant, st: dict[str, Any], g: dict[str, Any],
+            fire_step: int | None = None) -> tuple[ReplayResult | None, Any, bool]:  # fmt: skip
+        """One label's run of one grasp: (result, reflex, replayed); result None: the
+        no-reflex run's (this reflex never moves the targets within it)."""
+        grip = reflex_for(v, st, fire_step)
+        if grip is None:
+            return None, None, False
+        if v.policy.kind == "monitor" and not acts_on(grip, st["base_run"].traces):
+            return None, grip, False  # the scan saw every frame the loop would: no replay needed
+        key = same_run_key(grip)
+        if key is not None and key in st["done"]:
+            return st["done"][key], grip, False  # the same tightening from the same step
+        if v.policy.kind == "monitor":
+            grip = reflex_for(v, st, fire_step)
+        result = replay_once(scene, data, g, object_id, params, grip, slip)
+        if key is not None:
+            st["done"][key] = result
+        return result, grip, True
+
+    swept = {v.label: (v.parameter, v.value) for v in [*runs_of, *last]}
+    arm_of = {v.label: v.arm_s for v in [*runs_of, *last]}
+
+    def row(gid: int, name: str, result: ReplayResult, grip: Any, base: Baseline,
+            replayed: bool) -> dict[str, Any]:  # fmt: skip
+        parameter, value = swept.get(name, ("", np.nan))
+        return {"object": object_id, "grasp_id": gid, "policy": name, "parameter": parameter,
+                "value": value, "stop_reason": result.stop_reason, "steps": result.steps,
+                "arm_s": arm_step_of(base, arming, arm_of.get(name, arm_s), window_steps,
+                                     dt) * dt,
+                **outcome(result.traces, grip, base, labels, dt),
+                "replayed": replayed}  # fmt: skip
 
     rows, traces, best = [], {}, -1
-    for i, g in enumerate(grasps.iter_rows(named=True)):
+    rows_in = list(grasps.iter_rows(named=True))
+    # what the shuffled controls need of each grasp once its own runs are done: its baseline,
+    # its load step, each monitor's first tightening step and the no-reflex row (a control
+    # whose grip never moves is that run)
+    kept: list[dict[str, Any]] = []
+    for i, g in enumerate(rows_in):
         gid = int(g["grasp_id"])
         start = time.perf_counter()
         base_run = replay_once(scene, data, g, object_id, params, slip=slip)
         base = baseline_of(base_run.traces, labels, dt)
-        wall = {"none": time.perf_counter() - start}
-        replayed = {"none": True}
-        runs = {"none": (base_run, None)}
-        done_runs: dict[tuple[int, float, float], ReplayResult] = {}
+        st: dict[str, Any] = {"base_run": base_run, "base": base, "done": {},
+                              "load_step": load_step_of(scene, params, object_id, gid)}
+        mine = [row(gid, "none", base_run, None, base, True)]
+        runs = {"none": base_run}
+        first_on: dict[str, int | None] = {}
         for v in runs_of:
-            start = time.perf_counter()
-            grip = reflex_for(v, base.onset)
-            fresh = False
-            if grip is None:
-                run = base_run
-            elif v.policy.kind == "monitor" and not acts_on(grip, base_run.traces):
-                run = base_run  # the scan saw every frame the loop would: no replay needed
-            else:
-                key = same_run_key(grip)
-                if key is not None and key in done_runs:
-                    run = done_runs[key]  # the same tightening from the same step: same physics
-                else:
-                    if v.policy.kind == "monitor":
-                        grip = reflex_for(v, base.onset)
-                    run, fresh = replay_once(scene, data, g, object_id, params, grip, slip), True
-                    if key is not None:
-                        done_runs[key] = run
-            wall[v.label] = time.perf_counter() - start
-            replayed[v.label] = fresh
-            runs[v.label] = (run, grip)
-        swept = {v.label: (v.parameter, v.value) for v in runs_of}
-        for name in ["none", *(v.label for v in runs_of)]:
-            run, grip = runs[name]
-            parameter, value = swept.get(name, ("", np.nan))
-            rows.append({"object": object_id, "grasp_id": gid, "policy": name,
-                         "parameter": parameter, "value": value,
-                         "stop_reason": run.stop_reason, "steps": run.steps,
-                         **outcome(run.traces, grip, base, labels, dt),
-                         "replayed": replayed[name]})  # fmt: skip
-            if keep_traces:
-                traces[(gid, name)] = run.traces
-        done = [r for r in rows if r["grasp_id"] == gid]
+            result, grip, replayed = run(v, st, g)
+            result = base_run if result is None else result
+            mine.append(row(gid, v.label, result, grip, base, replayed))
+            runs[v.label] = result
+            first_on[v.label] = grip.on_steps[0] if grip is not None and grip.on_steps else None
+        rows += mine
+        if keep_traces:
+            traces.update({(gid, k): r.traces for k, r in runs.items()})
         if timeline is not None and timeline in runs:
-            rank = timeline_rank(next(r for r in done if r["policy"] == timeline))
+            rank = timeline_rank(next(r for r in mine if r["policy"] == timeline))
             if rank > best:
                 best, traces = rank, {(gid, "none"): base_run.traces,
-                                      (gid, timeline): runs[timeline][0].traces}  # fmt: skip
+                                      (gid, timeline): runs[timeline].traces}  # fmt: skip
+        kept.append({"base": base, "load_step": st["load_step"], "first_on": first_on,
+                     "none_row": mine[0],
+                     "done": {}})  # fmt: skip
         log.info("%s grasp %d (%d/%d): baseline %s; dropped under %s (%.1f s wall)", object_id,
-                 gid, i + 1, grasps.height,
+                 gid, i + 1, len(rows_in),
                  "no verdict" if not base.usable else "fails" if base.failing else "holds",
-                 ",".join(r["policy"] for r in done if r["dropped"]) or "none",
-                 sum(wall.values()))  # fmt: skip
+                 ",".join(r["policy"] for r in mine if r["dropped"]) or "none",
+                 time.perf_counter() - start)  # fmt: skip
+    for v in last:  # each monitor's tightening offsets from arming, dealt to other grasps
+        arms = [arm_step_of(k["base"], arming, v.arm_s, window_steps, dt) for k in kept]
+        offsets = [None if k["first_on"].get(v.policy.of) is None
+                   else k["first_on"][v.policy.of] - arm for k, arm in zip(kept, arms, strict=True)]
+        steps = shuffled_steps(offsets, arms, shuffle_seed, f"{object_id}/{v.label}")
+        for g, k, step in zip(rows_in, kept, steps, strict=True):
+            result, grip, replayed = run(v, k, g, step)
+            if result is None:
+                rows.append({**k["none_row"], "policy": v.label, "replayed": False,
+                             **dict(zip(("parameter", "value"), swept[v.label], strict=True))})
+            else:
+                rows.append(row(int(g["grasp_id"]), v.label, result, grip, k["base"], replayed))
     return pl.DataFrame(rows), traces
 
 

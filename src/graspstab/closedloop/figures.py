@@ -16,7 +16,9 @@ from graspstab.common.io import load_npz, read_parquet
 from graspstab.common.plotting import no_data, plt, save
 
 PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
-BOUNDS = {"always": ("k", "s"), "oracle": ("tab:green", "*")}  # colour and marker
+BOUNDS = {"always": ("k", "s"), "oracle": ("tab:green", "*"), "oracle-0ms": ("tab:green", "*"),
+          "oracle-150ms": ("tab:olive", "*"),
+          "load_onset": ("tab:purple", "D")}  # colour and marker  # fmt: skip
 FLOOR = 1e-4  # [mm/s] speeds below this are drawn at it (log axis)
 
 

@@ -14,7 +14,9 @@ chunk from ``first`` is planned, and one from a later frame acts at ``first + 1 
 earliest, so a chunk of ``delay + 1`` steps never needs a decision it has not seen. Python runs
 once a chunk, not once a step. Without a monitor (``fire_at`` given) the reflex is a fixed
 schedule: the "always tighten" and "oracle" policies. An ``arm_step`` ignores warnings on
-earlier frames (the monitor still reads them).
+earlier frames (the monitor still reads them); with ``fresh``, a warning already up at the arm
+step does not count either until it has dropped and risen again (only a warning raised after
+arming fires: one the monitor carries over from the settling transient is not a prediction).
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ class GripReflex:
     latency_s: float = 0.0
     fire_at: int | None = None
     arm_step: int = 0  # warnings on earlier frames are ignored (one up at it rises there)
+    fresh: bool = False  # a warning up at arm_step counts only after it drops and rises again
     # what happened: the steps a tightening started and a release started, and the warnings' frames
     on_steps: list[int] = field(default_factory=list)
     off_steps: list[int] = field(default_factory=list)
@@ -88,6 +91,7 @@ class GripReflex:
         self._offset, self._offset_at, self._dir = 0.0, 0, 0  # offset before step _offset_at
         self._warning = False
         self._down_since: int | None = None
+        self._stale = self.fresh  # fresh: ignore the warning until it is first seen down
         if self.monitor is not None:
             self.monitor.reset()
         if self.fire_at is not None:
@@ -146,6 +150,11 @@ class GripReflex:
         for k, raw in enumerate(trace.warning):
             frame = first + k
             up = bool(raw) and frame >= self.arm_step
+            if self._stale and frame >= self.arm_step:
+                if up:
+                    up = False  # still the warning that was up at arming
+                else:
+                    self._stale = False
             if up and not self._warning:
                 self.warn_frames.append(frame)
                 self._down_since = None

@@ -14,14 +14,12 @@ from typing import Any
 
 import polars as pl
 
-from graspstab.closedloop.policies import Policy
+from graspstab.closedloop.policies import FIXED, SHUFFLED, Policy, oracle_name
 from graspstab.common.io import read_parquet
 from graspstab.monitor.checkpoint import read_trained
 from graspstab.monitor.export import load_onnx
 from graspstab.monitor.proxy import proxy_scorer
 from graspstab.monitor.scoring import TorchScorer
-
-FIXED = {"none": "none", "always": "always", "oracle": "oracle"}
 
 
 def latency_s(table: str | Path, family: str, window_steps: int) -> float:
@@ -43,15 +41,21 @@ def build_policies(
     proxy_dataset: str | Path | None = None,
     threshold: Mapping[str, Any] | None = None,
     latency_table: str | Path | None = None,
+    oracle_leads_s: list[float] | None = None,
+    shuffled: bool = False,
 ) -> list[Policy]:
-    """The policies ``names`` (``closed_loop.policies``): fixed ones need nothing; a family needs
-    its (checkpoint, metrics.json) in ``checkpoints``; ``pick`` its exported ONNX file; ``proxy``
-    the dataset whose validation windows set its threshold by the train group's ``threshold``
-    rule. Models' latencies come from ``latency_table``."""
+    """The policies ``names`` (``closed_loop.policies``), in the order of
+    ``policies.policy_names``: fixed ones need nothing (``oracle`` is one policy per lead of
+    ``oracle_leads_s``); a family needs its (checkpoint, metrics.json) in ``checkpoints``;
+    ``pick`` its exported ONNX file; ``proxy`` the dataset whose validation windows set its
+    threshold by the train group's ``threshold`` rule. Models' latencies come from
+    ``latency_table``. With ``shuffled``, each monitor's shuffled-timing control follows."""
     out = []
     for name in names:
-        if name in FIXED:
-            out.append(Policy(name, FIXED[name]))
+        if name == "oracle" and oracle_leads_s:
+            out += [Policy(oracle_name(x), "oracle", lead_s=float(x)) for x in oracle_leads_s]
+        elif name in FIXED:
+            out.append(Policy(name, name))
         elif name == "proxy":
             scorer, _ = proxy_scorer(proxy_dataset, threshold)
             out.append(Policy(name, "monitor", scorer, scorer.constants.threshold, 0.0))
@@ -64,4 +68,7 @@ def build_policies(
             model, constants = read_trained(*checkpoints[name])
             out.append(Policy(name, "monitor", TorchScorer(model, constants), constants.threshold,
                               latency_s(latency_table, name, constants.window_steps)))  # fmt: skip
+    if shuffled:
+        out += [Policy(f"{p.name}{SHUFFLED}", "shuffled", of=p.name)
+                for p in list(out) if p.kind == "monitor"]  # fmt: skip
     return out

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from graspstab.closedloop.policies import SHUFFLED
 from graspstab.common.io import read_parquet, write_json, write_parquet
 
 # rate name: (the row's flag, the grasps it is a share of); "all": every usable grasp
@@ -218,10 +219,19 @@ def tradeoff_table(
     )
 
 
+def is_control(policy: str) -> bool:
+    """Whether a row label is a control rather than a monitor: no reflex, always, the load-onset
+    controller, an oracle, or a monitor's shuffled-timing control."""
+    return (policy in ("none", "always", "oracle", "load_onset") or policy.startswith("oracle-")
+            or policy.endswith(SHUFFLED))  # fmt: skip
+
+
 def default_comparisons(policies: Sequence[str]) -> list[tuple[str, str]]:
-    """Each monitor against the proxy, and every policy against no reflex."""
-    monitors = [p for p in policies if p not in ("none", "always", "oracle", "proxy")]
-    pairs = [(p, "proxy") for p in monitors if "proxy" in policies]
+    """Each learned monitor against the proxy, each monitor against its own shuffled timing
+    (what its timing alone buys), and every policy against no reflex."""
+    monitors = [p for p in policies if not is_control(p)]
+    pairs = [(p, "proxy") for p in monitors if p != "proxy" and "proxy" in policies]
+    pairs += [(p, f"{p}{SHUFFLED}") for p in monitors if f"{p}{SHUFFLED}" in policies]
     return pairs + [(p, "none") for p in policies if p != "none" and "none" in policies]
 
 
@@ -267,7 +277,10 @@ def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: fl
                      f"{100 * d['diff']:+.1f} points {_span(d['lo'], d['hi'], True)}; "
                      f"{alarms})")  # fmt: skip
     text = head + ": " + ("; ".join(parts) if parts else "no learned monitor was run") + "."
-    bounds = {"oracle": "the best any warning can do", "always": "the force-hungry bound"}
+    bounds = {"oracle": "the best any warning can do", "always": "the force-hungry bound",
+              "load_onset": "a perfect detector of the load"}  # fmt: skip
+    bounds |= {p: f"tightening {p.removeprefix('oracle-')} before the onset"
+               for p in rows if p.startswith("oracle-")}  # fmt: skip
     bound = [f"{p} ({why}) prevents {rows[p]['prevented']} of {drops}"
              for p, why in bounds.items() if p in rows]  # fmt: skip
     if bound:

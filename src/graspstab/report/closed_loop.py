@@ -15,8 +15,12 @@ from graspstab.report import html as H
 PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
 POLICIES = {
     "none": "no reflex",
-    "always": "tighten from the first step (the force-hungry bound)",
-    "oracle": "tighten at the onset minus the horizon (the best any warning can do)",
+    "always": "tighten at arming (the force-hungry bound)",
+    "oracle": "tighten before the no-reflex run's failure onset, one run per lead of "
+              "closed_loop.oracle_leads_s (the horizon without leads): the best a warning that "
+              "early can do",
+    "load_onset": "tighten when the load starts (a perfect detector of the load, not of slip; "
+                  "never under gravity alone)",
     "proxy": "the friction-ratio proxy as the monitor",
     "pick": "the latency-aware pick (4.5)",
     "cnn": "the CNN monitor",
@@ -198,8 +202,17 @@ def closed_loop_section(closed_loop: Mapping[str, Any] | None, config: Mapping[s
         f"the closing joints' targets move {reflex['amount']} rad further in at "
         f"{reflex['rate']} rad/s, {reflex['delay_s']} s after the warning plus the monitor's "
         f"measured latency (release: {reflex['release']}). Monitors: each family's model at "
-        f"{cl['window_s']} s with its validation-selected threshold. Policies: {named}. A drop "
-        "is a contact-free run of at least labels.contact_loss_s; definitions in "
+        f"{cl['window_s']} s with its validation-selected threshold, armed "
+        + ("at the no-reflex run's settle index plus the window (the first window counted "
+           "starts at settling, as every training window does)"
+           if cl.get("arming", "fixed") == "settle" else f"{cl.get('arm_s', 0)} s after placement")
+        + (", and a warning already up then counts only once it has dropped and risen again"
+           if cl.get("fresh") else "")
+        + f". Policies: {named}"
+        + (". Each monitor also has a shuffled control (<em>&lt;monitor&gt;~shuffled</em>): its "
+           "own tightening times after arming dealt to other grasps of the object, which is "
+           "what its timing alone buys" if cl.get("shuffled") else "")
+        + ". A drop is a contact-free run of at least labels.contact_loss_s; definitions in "
         "docs/extensions.md (Closed loop).</p>"
     )
     for protocol in cl["protocols"]:

@@ -1,0 +1,133 @@
+"""The closed loop's arming and controls: every monitor armed at the settle index plus the
+window, the load-onset controller firing where the protocol's load starts, oracles at their
+leads, and each monitor's shuffled control keeping its own tightening times from arming."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import polars as pl
+import pytest
+
+from graspstab.closedloop.closed_loop import (
+    arm_step_of,
+    closed_loop_object,
+    load_step_of,
+    protocol_params,
+    replay_once,
+    shuffled_steps,
+)
+from graspstab.closedloop.outcome import Baseline
+from graspstab.closedloop.policies import Policy, policy_names
+from graspstab.closedloop.reflex import ReflexParams
+from graspstab.closedloop.sources import build_policies
+from graspstab.closedloop.summary import default_comparisons, is_control
+from graspstab.config.compose import compose_config
+from graspstab.monitor.constants import MonitorConstants
+from graspstab.replay.grasp_setup import grasp_load
+from graspstab.replay.scene import build_replay_scene
+
+DT = 5e-4
+CONFIG = Path(__file__).parents[1] / "config"
+
+
+def _base(usable: bool, start: int) -> Baseline:
+    return Baseline(usable, start, start + 1000, None, None, np.zeros(2000))
+
+
+def test_arming_at_the_settle_index_plus_the_window_never_before_arm_s() -> None:
+    assert arm_step_of(_base(True, 300), "settle", 0.0, 20, DT) == 319
+    assert arm_step_of(_base(True, 300), "settle", 1.0, 20, DT) == 2000  # not before arm_s
+    assert arm_step_of(_base(True, 300), "fixed", 0.05, 20, DT) == 100
+    assert arm_step_of(_base(False, 300), "settle", 0.05, 20, DT) == 100  # no verdict: arm_s
+    with pytest.raises(ValueError, match="settle or fixed"):
+        arm_step_of(_base(True, 300), "sometimes", 0.0, 20, DT)
+
+
+def test_the_shuffled_control_keeps_the_monitors_timing_distribution() -> None:
+    offsets = [5, None, 40, 5, 300, None, 12]
+    arms = [100, 200, 300, 400, 500, 600, 700]
+    steps = shuffled_steps(offsets, arms, 0, "obj/gru~shuffled")
+    dealt = [None if s is None else s - a for s, a in zip(steps, arms, strict=True)]
+    assert Counter(dealt) == Counter(offsets)  # the same offsets from arming, dealt anew
+    assert dealt != offsets  # and dealt to other grasps (this seed moves them)
+    assert steps == shuffled_steps(offsets, arms, 0, "obj/gru~shuffled")  # reproducible
+    assert steps != shuffled_steps(offsets, arms, 0, "obj/cnn~shuffled")  # per monitor
+
+
+def test_policy_names_and_comparisons_cover_the_controls() -> None:
+    names = policy_names(["none", "always", "oracle", "load_onset", "proxy", "gru"],
+                         [0.0, 0.05, 0.15], shuffled=True)  # fmt: skip
+    assert names == ["none", "always", "oracle-0ms", "oracle-50ms", "oracle-150ms",
+                     "load_onset", "proxy", "gru", "proxy~shuffled", "gru~shuffled"]
+    built = [p.name for p in build_policies(["none", "always", "oracle", "load_onset"],
+                                            oracle_leads_s=[0.0, 0.05, 0.15], shuffled=True)]
+    assert built == names[:6]
+    assert [n for n in names if not is_control(n)] == ["proxy", "gru"]
+    pairs = default_comparisons(names)
+    assert ("gru", "proxy") in pairs and ("gru", "gru~shuffled") in pairs
+    assert ("proxy", "proxy~shuffled") in pairs and ("oracle-0ms", "proxy") not in pairs
+    with pytest.raises(ValueError, match="names the monitor it shuffles"):
+        Policy("x~shuffled", "shuffled")
+
+
+class Constant:
+    """A scorer that gives every window the same probability."""
+
+    def __init__(self, p: float, window: int = 20) -> None:
+        self.p = p
+        self.constants = MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.5, window)
+
+    def score_one(self, window: np.ndarray) -> float:
+        return self.p
+
+    def __call__(self, windows: np.ndarray) -> np.ndarray:
+        return np.full(len(windows), self.p)
+
+
+def test_controls_on_real_replays_under_the_disturbance(
+    foam_brick_dir: Path, built_hand_dir: Path, tmp_path: Path
+) -> None:
+    """Three grasps far from the hand under the hidden-onset disturbance (delays 0.1-0.2 s):
+    the load-onset controller tightens at the step the replay's own load starts; a monitor that
+    always warns tightens after arming plus its delay, and its shuffled control at the same
+    offset from arming (every grasp's offset is the same); a monitor that never warns leaves
+    its shuffled control the no-reflex run. (Not fresh: a monitor warning from its first score
+    is up at arming, and a fresh one would never fire.)"""
+    cfg = compose_config(CONFIG, ["creep_free.load=perturb",
+                                  "replay.perturb.delay_s=[0.1,0.2]"])  # fmt: skip
+    params = dict(protocol_params(cfg, "creep_free"), steps=800)
+    assert params["protocol"] == "perturb"
+    grasp = {"shard": 0, "wrist_x": 0.3, "wrist_y": -0.1, "wrist_z": 0.05,
+             **{f"quat_{a}": v for a, v in zip("wxyz", (1.0, 0.0, 0.0, 0.0), strict=True)},
+             **{f"theta_{k:02d}": 0.0 for k in range(16)}}  # fmt: skip
+    pl.DataFrame([dict(grasp, grasp_id=i) for i in (1, 2, 3)]).write_parquet(tmp_path / "g.pq")
+    policies = [Policy("none", "none"), Policy("load_onset", "load_onset"),
+                Policy("alarmed", "monitor", Constant(0.9)), Policy("calm", "monitor",
+                Constant(0.1)), Policy("alarmed~shuffled", "shuffled", of="alarmed"),
+                Policy("calm~shuffled", "shuffled", of="calm")]  # fmt: skip
+    table, _ = closed_loop_object(
+        "061_foam_brick", foam_brick_dir, built_hand_dir, tmp_path / "g.pq", params,
+        cfg["labels"], policies, ReflexParams(0.2, 4.0, 0.01), stride=10, arm_s=0.05,
+        arming="settle", window_steps=20,
+    )  # fmt: skip
+    rows = {(r["grasp_id"], r["policy"]): r for r in table.iter_rows(named=True)}
+    scene = build_replay_scene(built_hand_dir, foam_brick_dir, params)
+    for gid in (1, 2, 3):
+        # the load the replay draws for this grasp starts where the controller tightened
+        replay_once(scene, mujoco.MjData(scene.model), dict(grasp, grasp_id=gid),
+                    "061_foam_brick", params)  # places the grasp: gravity in the hand frame
+        load = grasp_load(params, scene, scene.model.opt.gravity.copy(), "061_foam_brick", gid)
+        step = load_step_of(scene, params, "061_foam_brick", gid)
+        assert step == round(load.start_s / DT) and 200 <= step <= 400
+        assert rows[(gid, "load_onset")]["tighten_s"] == pytest.approx(step * DT)
+        # armed at arm_s (no usable interval far from the hand); fires after the delay
+        alarmed = rows[(gid, "alarmed")]
+        assert alarmed["arm_s"] == pytest.approx(0.05) and alarmed["fired"]
+        assert rows[(gid, "alarmed~shuffled")]["tighten_s"] == pytest.approx(alarmed["tighten_s"])
+        calm = rows[(gid, "calm~shuffled")]
+        assert not calm["fired"] and not calm["replayed"]
+        assert calm["dropped"] == rows[(gid, "none")]["dropped"]
