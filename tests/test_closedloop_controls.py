@@ -72,6 +72,28 @@ def test_policy_names_and_comparisons_cover_the_controls() -> None:
     assert ("proxy", "proxy~shuffled") in pairs and ("oracle-0ms", "proxy") not in pairs
     with pytest.raises(ValueError, match="names the monitor it shuffles"):
         Policy("x~shuffled", "shuffled")
+    # each monitor at both thresholds (the pick has no budget threshold), each with its control
+    names = policy_names(["none", "proxy", "gru", "pick"], [], shuffled=True,
+                         thresholds=["recall", "budget"])  # fmt: skip
+    assert names == ["none", "proxy", "proxy-budget", "gru", "gru-budget", "pick",
+                     "proxy~shuffled", "proxy-budget~shuffled", "gru~shuffled",
+                     "gru-budget~shuffled", "pick~shuffled"]  # fmt: skip
+    pairs = default_comparisons(names)
+    assert ("gru-budget", "proxy-budget") in pairs and ("gru", "proxy") in pairs
+    assert ("gru-budget", "proxy") not in pairs and ("pick", "proxy") in pairs
+
+
+def test_budget_thresholds_need_the_grasp_level_evaluations_window() -> None:
+    from graspstab.config import load_config
+    from graspstab.config.errors import ConfigError
+
+    schema = CONFIG.parent / "workflow" / "schemas" / "config.schema.yaml"
+    on = {"closed_loop": {"enabled": True, "protocols": ["reference"], "window_s": 0.05}}
+    with pytest.raises(ConfigError, match="closed_loop.thresholds holds budget"):
+        load_config(CONFIG, schema, on, check_files=False)
+    on["overrides"] = ["closed_loop.thresholds=[recall]"]
+    assert load_config(CONFIG, schema, on, check_files=False)["closed_loop"]["thresholds"] == [
+        "recall"]
 
 
 class Constant:

@@ -54,3 +54,16 @@ def test_worse_list_is_capped_and_the_section_is_absent_when_off(tmp_path: Path)
     off = {"closed_loop": dict(CONFIG["closed_loop"], enabled=False)}
     assert closed_loop_section(_files(tmp_path, t, "reference"), off) == ""
     assert closed_loop_section({}, CONFIG) == ""
+
+
+def test_thresholds_are_stated_and_a_budget_at_the_floor_says_so(tmp_path: Path) -> None:
+    """Rows carrying each monitor's threshold (the object jobs write it): the summary keeps one
+    per policy and the section states them, a budget threshold at its grid floor flagged."""
+    t = planted().with_columns(
+        threshold=pl.when(pl.col("policy") == "gru").then(0.62)
+        .when(pl.col("policy") == "proxy").then(0.2).otherwise(float("nan")),
+        threshold_at_floor=pl.col("policy") == "proxy",
+    )  # fmt: skip
+    files = _files(tmp_path, t, "reference")
+    html = closed_loop_section(files, CONFIG)
+    assert "gru 0.62; proxy 0.2 (at the grid floor: the budget did not bind)" in html

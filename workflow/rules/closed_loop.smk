@@ -42,6 +42,10 @@ def closed_loop_inputs(wildcards):
         out["pick"] = rules.export_pick.output.onnx
     if "proxy" in names:
         out.update(dataset_inputs(f"{root}/datasets/sweep/w{CL_MS}ms"))
+    if "budget" in CL["thresholds"]:  # the grasp-level evaluation's budget thresholds
+        out["monitor_summary"] = (rules.evaluate_monitor.output.summary
+                                  if wildcards.protocol == "reference"
+                                  else f"{CREEP_FREE}/monitor/summary.json")  # fmt: skip
     return out
 
 
@@ -100,7 +104,7 @@ rule aggregate_closed_loop:
     params:
         # the row labels the object jobs write: each oracle lead, each monitor's shuffled control
         policies=lambda wc: policy_names(closed_loop_policies(wc.protocol), CL["oracle_leads_s"],
-                                         CL["shuffled"]),
+                                         CL["shuffled"], CL["thresholds"]),
         bootstrap=CL["bootstrap"],
     threads: 1
     resources:

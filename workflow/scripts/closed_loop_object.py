@@ -9,6 +9,7 @@ from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies
 from graspstab.closedloop.sweep import sweep_variants
 from graspstab.common.cache import run_cached
+from graspstab.common.io import read_json
 from graspstab.common.jobs import job
 from graspstab.common.logs import setup_logging
 from graspstab.common.provenance import provenance
@@ -29,6 +30,9 @@ def compute() -> None:
         proxy_dataset=Path(inputs["index"]).parent if "index" in inputs else None,
         threshold=dict(sm.params.threshold), latency_table=inputs["latency"],
         oracle_leads_s=list(cl["oracle_leads_s"]), shuffled=bool(cl["shuffled"]),
+        thresholds=list(cl["thresholds"]),
+        budget=(read_json(inputs["monitor_summary"])["early_warning"]["monitors"]
+                if "monitor_summary" in inputs else None),
     )  # fmt: skip
     monitor = dict(sm.params.monitor)
     reflex = ReflexParams(**cl["reflex"])

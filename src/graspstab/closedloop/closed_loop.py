@@ -233,12 +233,18 @@ def closed_loop_object(
 
     swept = {v.label: (v.parameter, v.value) for v in [*runs_of, *last]}
     arm_of = {v.label: v.arm_s for v in [*runs_of, *last]}
+    policy_of = {v.label: v.policy for v in [*runs_of, *last]}
 
     def row(gid: int, name: str, result: ReplayResult, grip: Any, base: Baseline,
             replayed: bool) -> dict[str, Any]:  # fmt: skip
         parameter, value = swept.get(name, ("", np.nan))
+        pol = policy_of.get(name)
+        monitored = pol is not None and pol.kind == "monitor"
         return {"object": object_id, "grasp_id": gid, "policy": name, "parameter": parameter,
                 "value": value, "stop_reason": result.stop_reason, "steps": result.steps,
+                "threshold": float(pol.scorer.constants.threshold if pol.threshold is None  # type: ignore[union-attr]
+                                   else pol.threshold) if monitored else np.nan,  # type: ignore[union-attr]
+                "threshold_at_floor": bool(pol.at_floor) if monitored else False,  # type: ignore[union-attr]
                 "arm_s": arm_step_of(base, arming, arm_of.get(name, arm_s), window_steps,
                                      dt) * dt,
                 **outcome(result.traces, grip, base, labels, dt),

@@ -27,6 +27,10 @@ KINDS = ("none", "always", "oracle", "monitor", "load_onset", "shuffled")
 #: the policy names that are not monitors (closed_loop.policies)
 FIXED = ("none", "always", "oracle", "load_onset")
 SHUFFLED = "~shuffled"  # suffix of a monitor's shuffled-timing control
+BUDGET = "-budget"  # suffix of a monitor at its false-warning budget threshold
+#: the monitors with a budget threshold (the grasp-level evaluation's: the families and the
+#: proxy at monitor.window_s; the pick is an export it does not score)
+BUDGETED = ("proxy", "cnn", "gru", "lstm")
 
 
 def oracle_name(lead_s: float) -> str:
@@ -35,17 +39,26 @@ def oracle_name(lead_s: float) -> str:
 
 
 def policy_names(names: list[str], oracle_leads_s: list[float] | None = None,
-                 shuffled: bool = False) -> list[str]:  # fmt: skip
+                 shuffled: bool = False,
+                 thresholds: tuple[str, ...] | list[str] = ("recall",)) -> list[str]:  # fmt: skip
     """The row labels a run's ``closed_loop.policies`` give: ``oracle`` one per lead (kept as
-    ``oracle`` without leads), and with ``shuffled`` each monitor's shuffled control after it."""
+    ``oracle`` without leads); each monitor at each of ``thresholds`` (``recall``: its own name;
+    ``budget``: ``<name>-budget``, for the monitors in ``BUDGETED``); and with ``shuffled`` each
+    monitor's shuffled control after them."""
     out: list[str] = []
+    monitors: list[str] = []
     for name in names:
         if name == "oracle" and oracle_leads_s:
             out += [oracle_name(x) for x in oracle_leads_s]
-        else:
+        elif name in FIXED:
             out.append(name)
+        else:
+            mine = ([name] if "recall" in thresholds else []) + (
+                [f"{name}{BUDGET}"] if "budget" in thresholds and name in BUDGETED else [])
+            out += mine
+            monitors += mine
     if shuffled:
-        out += [f"{n}{SHUFFLED}" for n in names if n not in FIXED]
+        out += [f"{n}{SHUFFLED}" for n in monitors]
     return out
 
 
@@ -61,6 +74,7 @@ class Policy:
     latency_s: float = 0.0
     lead_s: float | None = None  # oracle: how long before the onset (None: the horizon)
     of: str | None = None  # shuffled: the monitor policy whose tightening times it deals out
+    at_floor: bool = False  # a budget threshold at its grid's floor (the budget did not bind)
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:

@@ -8,13 +8,14 @@ proxy's latency is taken as zero: it is one division per fingertip.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import polars as pl
 
-from graspstab.closedloop.policies import FIXED, SHUFFLED, Policy, oracle_name
+from graspstab.closedloop.policies import BUDGET, BUDGETED, FIXED, SHUFFLED, Policy, oracle_name
 from graspstab.common.io import read_parquet
 from graspstab.monitor.checkpoint import read_trained
 from graspstab.monitor.export import load_onnx
@@ -43,13 +44,47 @@ def build_policies(
     latency_table: str | Path | None = None,
     oracle_leads_s: list[float] | None = None,
     shuffled: bool = False,
+    thresholds: tuple[str, ...] | list[str] = ("recall",),
+    budget: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> list[Policy]:
     """The policies ``names`` (``closed_loop.policies``), in the order of
     ``policies.policy_names``: fixed ones need nothing (``oracle`` is one policy per lead of
     ``oracle_leads_s``); a family needs its (checkpoint, metrics.json) in ``checkpoints``;
     ``pick`` its exported ONNX file; ``proxy`` the dataset whose validation windows set its
     threshold by the train group's ``threshold`` rule. Models' latencies come from
-    ``latency_table``. With ``shuffled``, each monitor's shuffled-timing control follows."""
+    ``latency_table``. Each monitor runs at each of ``thresholds``: ``recall`` (its own
+    validation-selected threshold, the reference's rule) and ``budget`` (``<name>-budget``: the
+    grasp-level evaluation's threshold for the false-warning budget, ``budget``: the
+    ``early_warning.monitors`` of its summary; a threshold at the grid floor is kept, flagged).
+    With ``shuffled``, each monitor's shuffled-timing control follows."""
+    out: list[Policy] = []
+    for policy in _base_policies(names, checkpoints=checkpoints, pick_onnx=pick_onnx,
+                                 proxy_dataset=proxy_dataset, threshold=threshold,
+                                 latency_table=latency_table,
+                                 oracle_leads_s=oracle_leads_s):  # fmt: skip
+        if policy.kind != "monitor":
+            out.append(policy)
+            continue
+        if "recall" in thresholds:
+            out.append(policy)
+        if "budget" in thresholds and policy.name in BUDGETED:
+            if budget is None or policy.name not in budget:
+                raise ValueError(f"closed loop: no budget threshold for {policy.name!r} in the "
+                                 "grasp-level evaluation's summary (early_warning.monitors)")
+            choice = budget[policy.name]["threshold"]
+            out.append(dataclasses.replace(policy, name=f"{policy.name}{BUDGET}",
+                                           threshold=float(choice["threshold"]),
+                                           at_floor=bool(choice["at_floor"])))  # fmt: skip
+    if shuffled:
+        out += [Policy(f"{p.name}{SHUFFLED}", "shuffled", of=p.name)
+                for p in list(out) if p.kind == "monitor"]  # fmt: skip
+    return out
+
+
+def _base_policies(names: list[str], *, checkpoints: Any, pick_onnx: Any, proxy_dataset: Any,
+                   threshold: Any, latency_table: Any,
+                   oracle_leads_s: list[float] | None) -> list[Policy]:  # fmt: skip
+    """Each named policy once, a monitor at its own validation-selected threshold."""
     out = []
     for name in names:
         if name == "oracle" and oracle_leads_s:
@@ -68,7 +103,4 @@ def build_policies(
             model, constants = read_trained(*checkpoints[name])
             out.append(Policy(name, "monitor", TorchScorer(model, constants), constants.threshold,
                               latency_s(latency_table, name, constants.window_steps)))  # fmt: skip
-    if shuffled:
-        out += [Policy(f"{p.name}{SHUFFLED}", "shuffled", of=p.name)
-                for p in list(out) if p.kind == "monitor"]  # fmt: skip
     return out

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from graspstab.closedloop.policies import SHUFFLED
+from graspstab.closedloop.policies import BUDGET, SHUFFLED
 from graspstab.common.io import read_parquet, write_json, write_parquet
 
 # rate name: (the row's flag, the grasps it is a share of); "all": every usable grasp
@@ -230,7 +230,10 @@ def default_comparisons(policies: Sequence[str]) -> list[tuple[str, str]]:
     """Each learned monitor against the proxy, each monitor against its own shuffled timing
     (what its timing alone buys), and every policy against no reflex."""
     monitors = [p for p in policies if not is_control(p)]
-    pairs = [(p, "proxy") for p in monitors if p != "proxy" and "proxy" in policies]
+    # at the same threshold rule: a monitor at its budget against the proxy at the same budget
+    pairs = [(p, f"proxy{BUDGET}" if p.endswith(BUDGET) else "proxy") for p in monitors
+             if not p.startswith("proxy")
+             and (f"proxy{BUDGET}" if p.endswith(BUDGET) else "proxy") in policies]  # fmt: skip
     pairs += [(p, f"{p}{SHUFFLED}") for p in monitors if f"{p}{SHUFFLED}" in policies]
     return pairs + [(p, "none") for p in policies if p != "none" and "none" in policies]
 
@@ -261,21 +264,29 @@ def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: fl
     drops = next(iter(rows.values()))["baseline_drops"]
     head = (f"Under {PROTOCOL_NAMES[protocol]}, over {n} test grasps ({drops} dropped without a "
             "reflex)")  # fmt: skip
-    if "proxy" not in rows:
+    if "proxy" not in rows and f"proxy{BUDGET}" not in rows:
         return head + ": the proxy was not run, so no learned-against-proxy answer is given."
-    cmp = {(r["policy"], r["figure"]): r for r in pairs.iter_rows(named=True)
-           if r["against"] == "proxy"}  # fmt: skip
     parts = []
-    for m in (m for m in LEARNED if m in rows and (m, "drop_rate") in cmp):
-        d, fa = cmp[(m, "drop_rate")], cmp[(m, "false_alarm_rate")]
-        says = DROP_VERDICTS.get(d["verdict"], "undefined")
-        alarms = (f"false alarms {100 * fa['diff']:+.1f} points "
-                  f"{_span(fa['lo'], fa['hi'], True)} against it" if np.isfinite(fa["diff"])
-                  else "false alarms undefined: no grasp holds without a reflex")  # fmt: skip
-        parts.append(f"{m} drops {_pct(rows[m]['drop_rate'])} against the proxy's "
-                     f"{_pct(rows['proxy']['drop_rate'])} ({says}: "
-                     f"{100 * d['diff']:+.1f} points {_span(d['lo'], d['hi'], True)}; "
-                     f"{alarms})")  # fmt: skip
+    for suffix, rule in (("", "at the recall rule's thresholds"),
+                         (BUDGET, "at the false-warning budget's thresholds")):  # fmt: skip
+        base = f"proxy{suffix}"
+        cmp = {(r["policy"], r["figure"]): r for r in pairs.iter_rows(named=True)
+               if r["against"] == base}  # fmt: skip
+        mine = []
+        for m in (f"{m}{suffix}" for m in LEARNED):
+            if m not in rows or (m, "drop_rate") not in cmp:
+                continue
+            d, fa = cmp[(m, "drop_rate")], cmp[(m, "false_alarm_rate")]
+            says = DROP_VERDICTS.get(d["verdict"], "undefined")
+            alarms = (f"false alarms {100 * fa['diff']:+.1f} points "
+                      f"{_span(fa['lo'], fa['hi'], True)} against it" if np.isfinite(fa["diff"])
+                      else "false alarms undefined: no grasp holds without a reflex")  # fmt: skip
+            mine.append(f"{m} drops {_pct(rows[m]['drop_rate'])} against the proxy's "
+                        f"{_pct(rows[base]['drop_rate'])} ({says}: "
+                        f"{100 * d['diff']:+.1f} points {_span(d['lo'], d['hi'], True)}; "
+                        f"{alarms})")  # fmt: skip
+        if mine:
+            parts.append(f"{rule}, " + "; ".join(mine))
     text = head + ": " + ("; ".join(parts) if parts else "no learned monitor was run") + "."
     bounds = {"oracle": "the best any warning can do", "always": "the force-hungry bound",
               "load_onset": "a perfect detector of the load"}  # fmt: skip
@@ -328,6 +339,12 @@ def aggregate_closed_loop(
         "bootstrap": dict(bootstrap),
         "worse_by_policy": {p: int((worse["policy"] == p).sum()) for p in policies},
         "swept": 0 if tradeoff.is_empty() else int((tradeoff["parameter"] != "default").sum()),
+        # each monitor's threshold, and whether a budget threshold sat at its grid's floor
+        "thresholds": {
+            r["policy"]: {"threshold": r["threshold"], "at_floor": r["threshold_at_floor"]}
+            for r in table.filter(pl.col("threshold").is_not_nan())
+            .unique("policy", keep="first", maintain_order=True).iter_rows(named=True)
+        } if "threshold" in table.columns else {},
         "answer": answer(protocol, pols, pairs, level),
     }
     write_json(out / "summary.json", summary)

@@ -155,6 +155,12 @@ def _check_closed_loop(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int])
               f"({list(cfg['creep_free']['sweep_windows_s'])}): the creep-free protocol's "
               "monitors are that benchmark's sweep models; add it there, or run the reference "
               "protocol only (closed_loop.protocols: [reference]).")  # fmt: skip
+    if "budget" in cl["thresholds"] and ms_of(w) != ms_of(cfg["monitor"]["window_s"]):
+        _fail(f"closed_loop.thresholds holds budget but closed_loop.window_s = {w} s is not "
+              f"monitor.window_s = {cfg['monitor']['window_s']} s: the budget thresholds are the "
+              "grasp-level evaluation's, chosen for the models at monitor.window_s. Set both "
+              "windows alike, or drop budget (--config 'overrides=[\"closed_loop.thresholds="
+              "[recall]\"]').")  # fmt: skip
 
 
 def _check_crossval(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int]) -> None:

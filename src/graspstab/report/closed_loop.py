@@ -99,6 +99,13 @@ def _protocol_parts(protocol: str, files: Mapping[str, Any]) -> list[str]:
     name = PROTOCOLS.get(protocol, protocol)
     parts = [H.heading(3, f"closed-loop-{protocol}", f"Closed loop: {name}")]
     parts.append(f'<p class="answer"><strong>{H.esc(summary["answer"])}</strong></p>')
+    if summary.get("thresholds"):  # a budget threshold at its grid's floor is said, never hidden
+        cells = [f"{p} {t['threshold']:.3g}" + (" (at the grid floor: the budget did not bind)"
+                                                 if t["at_floor"] else "")
+                 for p, t in summary["thresholds"].items()]  # fmt: skip
+        parts.append("<p>Thresholds (a monitor's own, from 3.5.3's recall rule; "
+                     "<em>-budget</em>: the grasp-level evaluation's for its false-warning "
+                     f"budget): {H.esc('; '.join(cells))}.</p>")
     rows = [
         [
             r["policy"],
