@@ -84,6 +84,20 @@ def test_counts_and_shares_are_what_the_planted_rows_give() -> None:
     assert np.isnan(r["none"]["added_normal_mean_n"])
 
 
+def test_false_alarms_per_grasp_second_are_over_the_holding_grasps_armed_seconds() -> None:
+    """Holding grasps 8-11 armed for 2 + g/4 s each: always alarms on all four, the proxy on 9,
+    the gru on 10; a table without the exposure column gives the figure undefined."""
+    t = planted().with_columns(armed_s=2.0 + pl.col("grasp_id") / 4)
+    table, _ = summarise_policies(t, ["none", "always", "proxy", "gru"], resamples=50)
+    r = {row["policy"]: row for row in table.iter_rows(named=True)}
+    seconds = sum(2.0 + g / 4 for g in (8, 9, 10, 11))
+    assert r["always"]["false_alarms_per_s"] == pytest.approx(4 / seconds)
+    assert r["proxy"]["false_alarms_per_s"] == pytest.approx(1 / seconds)
+    assert r["none"]["false_alarms_per_s"] == 0.0
+    old, _ = summarise_policies(planted(), ["none", "gru"], resamples=20)
+    assert old["false_alarms_per_s"].is_nan().all()
+
+
 def test_intervals_match_a_brute_force_bootstrap_on_the_same_draws() -> None:
     resamples, seed = 300, 7
     table, _ = summarise_policies(

@@ -247,6 +247,9 @@ def closed_loop_object(
                 "threshold_at_floor": bool(pol.at_floor) if monitored else False,  # type: ignore[union-attr]
                 "arm_s": arm_step_of(base, arming, arm_of.get(name, arm_s), window_steps,
                                      dt) * dt,
+                # the run's seconds from arming to its end: a false alarm's exposure
+                "armed_s": max(0, result.steps - arm_step_of(
+                    base, arming, arm_of.get(name, arm_s), window_steps, dt)) * dt,
                 **outcome(result.traces, grip, base, labels, dt),
                 "replayed": replayed}  # fmt: skip
 

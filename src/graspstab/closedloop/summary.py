@@ -37,6 +37,11 @@ MEANS: dict[str, str] = {
     "added_normal_peak_n": "added_normal_peak_n",
     "tightened_s": "tightened_s",
 }
+# ratio name: (the row's flag, the row's exposure column, the grasps it is over): false alarms
+# per grasp-second of the holding grasps' runs after arming
+RATIOS: dict[str, tuple[str, str, str]] = {
+    "false_alarms_per_s": ("false_alarm", "armed_s", "holding"),
+}
 # the paired comparisons a summary states: (policy, against, the figure compared)
 COMPARED = ("drop_rate", "prevented_share", "false_alarm_rate")
 
@@ -94,6 +99,15 @@ def _figures(rows: pl.DataFrame, weights: np.ndarray) -> dict[str, np.ndarray]:
         ok = np.isfinite(x)
         with np.errstate(invalid="ignore", divide="ignore"):
             out[name] = (weights @ np.where(ok, x, 0.0)) / (weights @ ok.astype(np.float64))
+    for name, (flag, exposure, subset) in RATIOS.items():
+        if exposure not in rows.columns:  # tables written before the column: undefined
+            out[name] = np.full(len(weights), np.nan)
+            continue
+        x = rows[flag].to_numpy().astype(np.float64)
+        e = rows[exposure].to_numpy().astype(np.float64)
+        m = masks[subset].astype(np.float64)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[name] = (weights @ (x * m)) / (weights @ (np.nan_to_num(e) * m))
     return out
 
 
@@ -147,7 +161,7 @@ def summarise_policies(
             "false_alarms": int(r["false_alarm"].sum()),
             "fired": int(r["fired"].sum()),
         }
-        for name in (*RATES, *MEANS):
+        for name in (*RATES, *MEANS, *RATIOS):
             lo, hi = _interval(draws[name], level)
             row[name], row[f"{name}_lo"], row[f"{name}_hi"] = float(est[name][0]), lo, hi
         out.append(row)
