@@ -119,6 +119,29 @@ def test_intervals_match_a_brute_force_bootstrap_on_the_same_draws() -> None:
     assert w.shape == (resamples, N) and np.all(w.sum(axis=1) == N)
 
 
+def test_the_object_bootstrap_draws_whole_objects_against_brute_force() -> None:
+    """Grasps 0-6 are object a, 7-11 object b: each resample counts every grasp of an object as
+    often as the object was drawn, and the proxy's prevented share is a ratio of those sums."""
+    resamples, seed = 200, 3
+    objects = ["a" if g < 7 else "b" for g in range(N)]
+    w = bootstrap_weights(N, resamples, seed, objects)
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, 2, (resamples, 2))
+    want = np.array([[np.sum(p == (0 if o == "a" else 1)) for o in objects] for p in picks])
+    np.testing.assert_array_equal(w, want)
+    table, _ = summarise_policies(planted(), ["none", "proxy"], resamples=resamples, seed=seed,
+                                  level=0.9, unit="object")  # fmt: skip
+    proxy = table.filter(pl.col("policy") == "proxy").row(0, named=True)
+    prevented = np.array([g in (3, 4, 5) for g in range(N)], float)
+    dropped = (np.arange(N) < 6).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shares = (want @ prevented) / (want @ dropped)
+    lo, hi = np.quantile(shares[np.isfinite(shares)], [0.05, 0.95])
+    assert (proxy["prevented_share_lo"], proxy["prevented_share_hi"]) == pytest.approx((lo, hi))
+    with pytest.raises(ValueError, match="grasp or object"):
+        summarise_policies(planted(), ["none"], resamples=100, unit="fold")
+
+
 def test_paired_comparisons_resolve_a_clear_gain_and_tie_identical_policies() -> None:
     t = planted()
     t = pl.concat([t, t.filter(pl.col("policy") == "gru").with_columns(policy=pl.lit("twin"))])

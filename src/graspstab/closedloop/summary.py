@@ -120,11 +120,20 @@ def _interval(draws: np.ndarray, level: float) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def bootstrap_weights(n: int, resamples: int, seed: int) -> np.ndarray:
-    """(resamples, n) counts of each grasp in each resample (grasps drawn with replacement)."""
+def bootstrap_weights(n: int, resamples: int, seed: int,
+                      clusters: Sequence[str] | None = None) -> np.ndarray:  # fmt: skip
+    """(resamples, n) counts of each grasp in each resample: grasps drawn with replacement, or
+    with ``clusters`` (each grasp's object) whole objects drawn with replacement, every grasp of
+    a drawn object counted once per draw (a bootstrap over grasps clustered by object: one
+    object's grasps share its shape and mass, so they are not independent)."""
     rng = np.random.default_rng(seed)
-    draws = rng.integers(0, n, (resamples, n))
-    return np.stack([np.bincount(d, minlength=n) for d in draws]).astype(np.float64)
+    if clusters is None:
+        draws = rng.integers(0, n, (resamples, n))
+        return np.stack([np.bincount(d, minlength=n) for d in draws]).astype(np.float64)
+    names, which = np.unique(np.asarray(clusters), return_inverse=True)
+    picks = rng.integers(0, len(names), (resamples, len(names)))
+    counts = np.stack([np.bincount(d, minlength=len(names)) for d in picks])
+    return counts[:, which].astype(np.float64)
 
 
 def summarise_policies(
@@ -135,16 +144,21 @@ def summarise_policies(
     level: float = 0.95,
     seed: int = 0,
     compare: Sequence[tuple[str, str]] = (),
+    unit: str = "grasp",
 ) -> tuple[pl.DataFrame, pl.DataFrame]:
     """One row per policy (counts; every figure with its ``_lo``/``_hi`` bootstrap interval) and
     one row per comparison in ``compare`` ((policy, against): each figure of ``COMPARED`` as
-    policy minus against, paired over the same grasps, with its interval and verdict)."""
+    policy minus against, paired over the same grasps, with its interval and verdict). ``unit``:
+    what the bootstrap resamples, ``grasp`` or ``object`` (grasps clustered by object)."""
     rows = _aligned(table, policies)
     n = rows[policies[0]].height
     if n == 0:
         raise ValueError("closed-loop tables: no usable grasp (no no-reflex run has a verdict)")
+    if unit not in ("grasp", "object"):
+        raise ValueError(f"closed_loop.bootstrap.unit must be grasp or object, got {unit!r}")
     point = np.ones((1, n))
-    weights = bootstrap_weights(n, resamples, seed)
+    clusters = rows[policies[0]]["object"].to_list() if unit == "object" else None
+    weights = bootstrap_weights(n, resamples, seed, clusters)
     figures = {p: (_figures(r, point), _figures(r, weights)) for p, r in rows.items()}
     out = []
     for p in policies:
@@ -270,7 +284,8 @@ def _span(lo: float, hi: float, points: bool = False) -> str:
     return f"[{f.format(100 * lo)}, {f.format(100 * hi)}]"
 
 
-def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: float) -> str:
+def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: float,
+           unit: str = "grasps") -> str:  # fmt: skip
     """The section's one-paragraph answer: does a learned monitor save more grasps than the proxy
     (drop rate, paired over grasps), at what false alarms and force, and what no warning saves."""
     rows = {r["policy"]: r for r in policies.iter_rows(named=True)}
@@ -310,7 +325,7 @@ def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: fl
              for p, why in bounds.items() if p in rows]  # fmt: skip
     if bound:
         text += " " + "; ".join(bound).capitalize() + "."
-    text += f" Intervals: {round(100 * level)} % paired bootstrap over grasps."
+    text += f" Intervals: {round(100 * level)} % paired bootstrap over {unit}."
     return text
 
 
@@ -337,7 +352,8 @@ def aggregate_closed_loop(
     }
     tradeoff = tradeoff_table(every, **boot)
     pols, pairs = summarise_policies(
-        table, list(policies), compare=default_comparisons(policies), **boot
+        table, list(policies), compare=default_comparisons(policies), **boot,
+        unit=str(bootstrap.get("unit", "grasp")),
     )
     worse = worse_grasps(table)
     out = Path(out_dir)
@@ -359,7 +375,9 @@ def aggregate_closed_loop(
             for r in table.filter(pl.col("threshold").is_not_nan())
             .unique("policy", keep="first", maintain_order=True).iter_rows(named=True)
         } if "threshold" in table.columns else {},
-        "answer": answer(protocol, pols, pairs, level),
+        "answer": answer(protocol, pols, pairs, level,
+                         "grasps clustered by object" if bootstrap.get("unit") == "object"
+                         else "grasps"),
     }
     write_json(out / "summary.json", summary)
     return summary
