@@ -42,8 +42,8 @@ if config["crossval"]["enabled"]:
 
 
 # The closed loop: a grip reflex driven by the monitor in the replay (docs/extensions.md "Closed
-# loop"), when enabled.
-if config["closed_loop"]["enabled"]:
+# loop"), when enabled on the fixed split or over the cross-validation folds.
+if config["closed_loop"]["enabled"] or config["closed_loop"]["folds"]["enabled"]:
 
     include: "workflow/rules/closed_loop.smk"
 

@@ -153,3 +153,51 @@ def test_controls_on_real_replays_under_the_disturbance(
         calm = rows[(gid, "calm~shuffled")]
         assert not calm["fired"] and not calm["replayed"]
         assert calm["dropped"] == rows[(gid, "none")]["dropped"]
+
+
+def test_fold_policies_come_from_the_folds_own_files(tmp_path: Path) -> None:
+    """build_fold_policies: the family's fold model at its own threshold, the proxy's threshold
+    chosen on the fold's validation objects' windows (not the dataset's split), the budget
+    thresholds of the fold's thresholds.json (a never-warning one flagged), the rows in
+    policy_names' order; the pick refused."""
+    import torch
+
+    from graspstab.closedloop.sources import build_fold_policies
+    from graspstab.evaluation.tested_run import train_and_test
+    from graspstab.learning.data import load_window_data
+    from graspstab.monitor.proxy import select_proxy_threshold
+    from tests.test_learning_train import LSTM, TRAIN, write_dataset
+
+    torch.set_num_threads(1)
+    data = write_dataset(tmp_path / "d", {"train": 8, "val": 8, "test": 8})
+    run = tmp_path / "run"
+    train_and_test(data, LSTM, {**TRAIN, "max_epochs": 1, "patience": 1}, 0, run)
+    index = pl.read_parquet(data / "index.parquet")
+    objects = sorted(set(index["object"]))
+    assignment = {o: ("val" if o == objects[-1] else "train") for o in objects}
+    pl.DataFrame({"study": ["sweep"], "family": ["lstm"], "window_steps": [20],
+                  "median_ms": [0.5]}).write_parquet(tmp_path / "latency.parquet")  # fmt: skip
+    choice = {"threshold": 0.7, "at_floor": False, "never_warns": False}
+    folds = {"thresholds": {"lstm": choice, "proxy": {**choice, "threshold": 0.51,
+                                                       "never_warns": True}}}  # fmt: skip
+    rule = {"rule": "min_recall", "min_recall": 0.9}
+    names = ["none", "oracle", "proxy", "lstm"]
+    pols = build_fold_policies(
+        names, checkpoints={"lstm": (run / "model.pt", run / "metrics.json")},
+        fold_thresholds=folds, proxy_dataset=data, assignment=assignment, threshold=rule,
+        latency_table=tmp_path / "latency.parquet", oracle_leads_s=[0.0, 0.05], shuffled=True,
+        thresholds=["recall", "budget"],
+    )  # fmt: skip
+    assert [p.name for p in pols] == policy_names(names, [0.0, 0.05], True, ["recall", "budget"])
+    by = {p.name: p for p in pols}
+    w = load_window_data(data)
+    rows = np.flatnonzero(index["object"].to_numpy() == objects[-1])
+    want = select_proxy_threshold(w.windows[rows], w.labels(rows), rule)["threshold"]
+    assert by["proxy"].threshold == pytest.approx(want)
+    assert by["lstm-budget"].threshold == 0.7 and by["lstm"].threshold != 0.7
+    assert by["proxy-budget"].never_warns and not by["lstm-budget"].never_warns
+    assert by["lstm"].latency_s == pytest.approx(0.5e-3)
+    with pytest.raises(ValueError, match="the pick is an export"):
+        build_fold_policies(["pick"], checkpoints={}, fold_thresholds=folds, proxy_dataset=data,
+                            assignment=assignment, threshold=rule,
+                            latency_table=tmp_path / "latency.parquet")  # fmt: skip

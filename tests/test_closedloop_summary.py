@@ -187,7 +187,7 @@ def test_aggregate_writes_the_tables_and_states_the_answer(tmp_path) -> None:
     assert summary["grasps"] == N and summary["unusable"] == 1 and summary["objects"] == ["a", "b"]
     assert summary["worse_by_policy"] == {"none": 0, "always": 1, "proxy": 0, "gru": 0}
     text = summary["answer"]
-    assert text.startswith("Under the creep-free load ramp, over 12 test grasps (6 dropped")
+    assert text.startswith("Under the creep-free benchmark, over 12 test grasps (6 dropped")
     assert (
         "gru drops 50.0 % against the proxy's 25.0 % (no resolved difference from the proxy: +25.0 "
         "points [+0.0, +50.0]" in text

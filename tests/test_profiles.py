@@ -190,6 +190,43 @@ def test_wide_profile_tests_every_object_once_per_family_and_protocol(bare_env, 
 
 
 @pytest.mark.workflow
+def test_the_closed_loop_over_the_folds_runs_every_object_on_its_own_folds_files(
+    bare_env, tmp_path
+):
+    """closed_loop_folds: one job per object under the hidden-onset protocol, each reading its
+    own test fold's models and budget thresholds; one summary; no fixed-split closed loop; the
+    folds without cross-validation, or with the pick, are refused with the fix."""
+    from graspstab.config import load_config
+    from graspstab.evaluation.folds import kfold_assignments
+
+    cfg = load_config(CONFIG_DIR, SCHEMA, {"profile": "closed_loop_folds"}, check_files=False)
+    cv = cfg["crossval"]
+    proc = _snakemake(tmp_path, bare_env, "--dry-run", "results/report.html", "--config",
+                      "profile=closed_loop_folds")  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    counts = _job_counts(proc.stdout)
+    assert counts["closed_loop_fold_object"] == len(cfg["objects"]["items"]) == 44
+    assert counts["aggregate_closed_loop_folds"] == 1 and "closed_loop_object" not in counts
+    folds = kfold_assignments(list(cfg["objects"]["items"]), cv["k"], cv["fold_seed"])
+    for j in listed_jobs(proc.stdout):
+        if j["rule"] != "closed_loop_fold_object":
+            continue
+        obj = j["wildcards"]["object"]
+        k = next(i for i, a in enumerate(folds) if a[obj] == "test")
+        assert f"results/creep_free/monitor/crossval/f{k}/thresholds.json" in j["input"]
+        models = [p for p in j["input"] if "/train/crossval/" in p]
+        assert models and all("/forces/" in p and f"/f{k}/" in p for p in models)
+    for override, message in (
+        (["closed_loop={folds: {enabled: true, grasps: 2}}"], "needs the cross-validation"),
+        (["profile=closed_loop_folds", "overrides=[\"closed_loop.policies=[none,pick]\"]"],
+         "the pick is an export"),
+    ):  # fmt: skip
+        proc = _snakemake(tmp_path, bare_env, "--dry-run", "results/report.html", "--config",
+                          *override)  # fmt: skip
+        assert proc.returncode != 0 and message in proc.stdout + proc.stderr, override
+
+
+@pytest.mark.workflow
 def test_closed_loop_runs_every_test_object_per_protocol_on_that_protocols_monitors(
     bare_env, tmp_path
 ):

@@ -67,3 +67,17 @@ def test_thresholds_are_stated_and_a_budget_at_the_floor_says_so(tmp_path: Path)
     files = _files(tmp_path, t, "reference")
     html = closed_loop_section(files, CONFIG)
     assert "gru 0.62; proxy 0.2 (at the grid floor: the budget did not bind)" in html
+
+
+def test_the_folds_part_stands_alone_when_only_the_folds_ran(tmp_path: Path) -> None:
+    """closed_loop.folds without the fixed split's closed loop: the section shows the folds'
+    part (its own heading, intervals over objects) and no fixed-split part."""
+    files = _files(tmp_path, planted(), "creep_free")
+    folds = {f"folds_{k}": v for k, v in files.items()}
+    config = {"closed_loop": dict(CONFIG["closed_loop"], enabled=False,
+                                  folds={"enabled": True, "grasps": 4})}  # fmt: skip
+    html = closed_loop_section(folds, config)
+    assert 'id="closed-loop-folds-creep_free"' in html and "each object's first 4 grasps" in html
+    assert 'id="closed-loop-creep_free"' not in html
+    assert closed_loop_section(folds, {"closed_loop": dict(config["closed_loop"],
+                               folds={"enabled": False, "grasps": 4})}) == ""  # fmt: skip

@@ -74,7 +74,8 @@ rule closed_loop_object:
         timeline="results/closed_loop/{protocol}/timeline/{object}.npz",
     params:
         replay=lambda wc: protocol_params(config, wc.protocol),
-        labels=config["labels"],
+        # the protocol's labelling rules (the creep-free benchmark's own source)
+        labels=lambda wc: config["labels"] if wc.protocol == "reference" else creep_free_labels(),
         closed_loop=CL,
         policies=lambda wc: closed_loop_policies(wc.protocol),
         timeline=lambda wc: timeline_policy(wc.protocol),
@@ -149,7 +150,7 @@ rule plot_closed_loop:
 # (closed_loop_<protocol>_<artefact>).
 CLOSED_LOOP_ARTEFACTS = {
     f"{p}_{k}": v.replace("{protocol}", p)
-    for p in CL["protocols"]
+    for p in (CL["protocols"] if CL["enabled"] else [])
     for k, v in [*rules.aggregate_closed_loop.output.items(),
                  *((f"{k}_figure", v) for k, v in rules.plot_closed_loop.output.items())]
 }  # fmt: skip
@@ -164,3 +165,99 @@ rule closed_loop:
     input:
         closed_loop_tables(),
         CLOSED_LOOP_ARTEFACTS.values(),
+
+
+# The closed loop over the cross-validation folds (closed_loop.folds; docs/extensions.md "Closed
+# loop"): every object's grasps (the lowest ids, closed_loop.folds.grasps of them) under its test
+# fold's own models, the proxy's threshold on that fold's validation windows and the budget
+# thresholds evaluate_fold_monitor chose on its validation grasps; one summary per protocol with
+# intervals by bootstrap over grasps clustered by object. The config validator has checked that
+# each protocol's folds have those thresholds (crossval.early_warning) and that the windows agree.
+CLF = CL["folds"]
+CLF_SUMMARY = "results/closed_loop/folds/summary/{protocol}"
+
+
+def fold_of(obj):
+    """The fold in which ``obj`` is a test object."""
+    return next(k for k, a in enumerate(fold_assignments()) if a.get(obj) == "test")
+
+
+def closed_loop_fold_inputs(wildcards):
+    """An object's test fold: its models, its budget thresholds, the dataset its proxy threshold
+    is chosen on, and the latency table."""
+    root, k = CV_ROOTS[wildcards.protocol], fold_of(wildcards.object)
+    out = {"latency": rules.measure_latency.output[0],
+           "thresholds": f"{root}/monitor/crossval/f{k}/thresholds.json"}  # fmt: skip
+    out.update({k2: v for k2, v in fold_model_inputs(root, k).items()
+                if k2.removeprefix("checkpoint_").removeprefix("metrics_") in CL["policies"]})
+    if "proxy" in CL["policies"]:
+        out.update(dataset_inputs(f"{root}/datasets/sweep/w{CV_MS}ms"))
+    return out
+
+
+def closed_loop_fold_tables(protocol):
+    return expand("results/closed_loop/folds/{protocol}/{object}.parquet", protocol=protocol,
+                  object=object_ids())  # fmt: skip
+
+
+rule closed_loop_fold_object:
+    input:
+        unpack(closed_loop_fold_inputs),
+        grasps=shard_tables,
+        object_xml="results/objects/{object}/object.xml",
+        hand=rules.build_hand.output,
+    output:
+        table="results/closed_loop/folds/{protocol}/{object}.parquet",
+        timeline="results/closed_loop/folds/{protocol}/timeline/{object}.npz",
+    params:
+        replay=lambda wc: protocol_params(config, wc.protocol),
+        labels=lambda wc: config["labels"] if wc.protocol == "reference" else creep_free_labels(),
+        closed_loop=CL,
+        policies=CL["policies"],
+        timeline=lambda wc: timeline_policy(wc.protocol),
+        monitor=config["monitor"],
+        threshold=config["train"]["threshold"],
+        assignment=lambda wc: fold_assignments()[fold_of(wc.object)],
+    threads: 1
+    resources:
+        mem_mb=3000,
+        runtime=240,
+    log:
+        "results/logs/closed_loop_fold_object/{protocol}_{object}.log",
+    benchmark:
+        "results/benchmarks/closed_loop_fold_object/{protocol}_{object}.tsv"
+    script:
+        "../scripts/closed_loop_fold_object.py"
+
+
+rule aggregate_closed_loop_folds:
+    input:
+        lambda wc: closed_loop_fold_tables(wc.protocol),
+    output:
+        policies=f"{CLF_SUMMARY}/policies.parquet",
+        comparisons=f"{CLF_SUMMARY}/comparisons.parquet",
+        worse=f"{CLF_SUMMARY}/worse.parquet",
+        tradeoff=f"{CLF_SUMMARY}/tradeoff.parquet",
+        summary=f"{CLF_SUMMARY}/summary.json",
+    params:
+        policies=policy_names(CL["policies"], CL["oracle_leads_s"], CL["shuffled"],
+                              CL["thresholds"]),
+        # every object a test object once: intervals resample whole objects
+        bootstrap={**CL["bootstrap"], "unit": "object"},
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=20,
+    log:
+        "results/logs/aggregate_closed_loop_folds/{protocol}.log",
+    benchmark:
+        "results/benchmarks/aggregate_closed_loop_folds/{protocol}.tsv"
+    script:
+        "../scripts/aggregate_closed_loop.py"
+
+
+CLOSED_LOOP_ARTEFACTS |= {
+    f"folds_{p}_{k}": v.replace("{protocol}", p)
+    for p in (CL["protocols"] if CLF["enabled"] else [])
+    for k, v in rules.aggregate_closed_loop_folds.output.items()
+}

@@ -245,6 +245,7 @@ def closed_loop_object(
                 "threshold": float(pol.scorer.constants.threshold if pol.threshold is None  # type: ignore[union-attr]
                                    else pol.threshold) if monitored else np.nan,  # type: ignore[union-attr]
                 "threshold_at_floor": bool(pol.at_floor) if monitored else False,  # type: ignore[union-attr]
+                "threshold_never_warns": bool(pol.never_warns) if monitored else False,  # type: ignore[union-attr]
                 "arm_s": arm_step_of(base, arming, arm_of.get(name, arm_s), window_steps,
                                      dt) * dt,
                 # the run's seconds from arming to its end: a false alarm's exposure

@@ -75,6 +75,7 @@ class Policy:
     lead_s: float | None = None  # oracle: how long before the onset (None: the horizon)
     of: str | None = None  # shuffled: the monitor policy whose tightening times it deals out
     at_floor: bool = False  # a budget threshold at its grid's floor (the budget did not bind)
+    never_warns: bool = False  # a budget threshold above every validation score
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:

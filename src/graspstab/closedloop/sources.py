@@ -57,11 +57,21 @@ def build_policies(
     grasp-level evaluation's threshold for the false-warning budget, ``budget``: the
     ``early_warning.monitors`` of its summary; a threshold at the grid floor is kept, flagged).
     With ``shuffled``, each monitor's shuffled-timing control follows."""
+    base = _base_policies(names, checkpoints=checkpoints, pick_onnx=pick_onnx,
+                          proxy_dataset=proxy_dataset, threshold=threshold,
+                          latency_table=latency_table, oracle_leads_s=oracle_leads_s)  # fmt: skip
+    choices = None if budget is None else {n: b["threshold"] for n, b in budget.items()}
+    return with_thresholds(base, thresholds, choices, shuffled)
+
+
+def with_thresholds(policies: list[Policy], thresholds: tuple[str, ...] | list[str],
+                    budget: Mapping[str, Mapping[str, Any]] | None,
+                    shuffled: bool) -> list[Policy]:  # fmt: skip
+    """Each monitor of ``policies`` at each of ``thresholds`` (``recall``: as it is; ``budget``:
+    ``<name>-budget`` at ``budget[name]``, a ``budget_threshold`` choice, flagged when at the
+    grid floor or above every score), then with ``shuffled`` each monitor's shuffled control."""
     out: list[Policy] = []
-    for policy in _base_policies(names, checkpoints=checkpoints, pick_onnx=pick_onnx,
-                                 proxy_dataset=proxy_dataset, threshold=threshold,
-                                 latency_table=latency_table,
-                                 oracle_leads_s=oracle_leads_s):  # fmt: skip
+    for policy in policies:
         if policy.kind != "monitor":
             out.append(policy)
             continue
@@ -69,12 +79,13 @@ def build_policies(
             out.append(policy)
         if "budget" in thresholds and policy.name in BUDGETED:
             if budget is None or policy.name not in budget:
-                raise ValueError(f"closed loop: no budget threshold for {policy.name!r} in the "
-                                 "grasp-level evaluation's summary (early_warning.monitors)")
-            choice = budget[policy.name]["threshold"]
-            out.append(dataclasses.replace(policy, name=f"{policy.name}{BUDGET}",
-                                           threshold=float(choice["threshold"]),
-                                           at_floor=bool(choice["at_floor"])))  # fmt: skip
+                raise ValueError(f"closed loop: no budget threshold for {policy.name!r} (the "
+                                 "grasp-level evaluation's early_warning, or the fold's "
+                                 "thresholds.json)")  # fmt: skip
+            c = budget[policy.name]
+            out.append(dataclasses.replace(
+                policy, name=f"{policy.name}{BUDGET}", threshold=float(c["threshold"]),
+                at_floor=bool(c["at_floor"]), never_warns=bool(c.get("never_warns"))))
     if shuffled:
         out += [Policy(f"{p.name}{SHUFFLED}", "shuffled", of=p.name)
                 for p in list(out) if p.kind == "monitor"]  # fmt: skip
@@ -104,3 +115,41 @@ def _base_policies(names: list[str], *, checkpoints: Any, pick_onnx: Any, proxy_
             out.append(Policy(name, "monitor", TorchScorer(model, constants), constants.threshold,
                               latency_s(latency_table, name, constants.window_steps)))  # fmt: skip
     return out
+
+
+def build_fold_policies(
+    names: list[str],
+    *,
+    checkpoints: Mapping[str, tuple[str | Path, str | Path]],
+    fold_thresholds: Mapping[str, Any],
+    proxy_dataset: str | Path | None,
+    assignment: Mapping[str, str],
+    threshold: Mapping[str, Any],
+    latency_table: str | Path,
+    oracle_leads_s: list[float] | None = None,
+    shuffled: bool = False,
+    thresholds: tuple[str, ...] | list[str] = ("recall",),
+) -> list[Policy]:
+    """The policies of one cross-validation fold's closed loop, as :func:`build_policies` gives
+    them on the fixed split, from the fold's own files: each family's fold model (its
+    validation-selected threshold), the proxy with its threshold on the fold's validation
+    windows, and the budget thresholds ``evaluate_fold_monitor`` chose on the fold's validation
+    grasps (``fold_thresholds``: its thresholds.json). The pick has no fold model: refused."""
+    if "pick" in names:
+        raise ValueError("closed loop over the folds: the pick is an export of the fixed split's "
+                         "sweep and has no fold model; leave it out of closed_loop.policies")
+    out: list[Policy] = []
+    for name in names:
+        if name == "oracle" and oracle_leads_s:
+            out += [Policy(oracle_name(x), "oracle", lead_s=float(x)) for x in oracle_leads_s]
+        elif name in FIXED:
+            out.append(Policy(name, name))
+        elif name == "proxy":
+            val = [o for o, s in assignment.items() if s == "val"]
+            scorer, _ = proxy_scorer(proxy_dataset, threshold, val)  # type: ignore[arg-type]
+            out.append(Policy(name, "monitor", scorer, scorer.constants.threshold, 0.0))
+        else:
+            model, constants = read_trained(*checkpoints[name])
+            out.append(Policy(name, "monitor", TorchScorer(model, constants), constants.threshold,
+                              latency_s(latency_table, name, constants.window_steps)))  # fmt: skip
+    return with_thresholds(out, thresholds, fold_thresholds["thresholds"], shuffled)

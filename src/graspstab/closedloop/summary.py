@@ -267,7 +267,7 @@ def default_comparisons(policies: Sequence[str]) -> list[tuple[str, str]]:
 
 
 PROTOCOL_NAMES = {"reference": "the reference protocol (gravity switch)",
-                  "creep_free": "the creep-free load ramp"}  # fmt: skip
+                  "creep_free": "the creep-free benchmark"}  # fmt: skip
 LEARNED = ("pick", "cnn", "gru", "lstm")
 DROP_VERDICTS = {"lower": "fewer drops than the proxy", "higher": "more drops than the proxy",
                  "not resolved": "no resolved difference from the proxy"}  # fmt: skip
@@ -371,7 +371,8 @@ def aggregate_closed_loop(
         "swept": 0 if tradeoff.is_empty() else int((tradeoff["parameter"] != "default").sum()),
         # each monitor's threshold, and whether a budget threshold sat at its grid's floor
         "thresholds": {
-            r["policy"]: {"threshold": r["threshold"], "at_floor": r["threshold_at_floor"]}
+            r["policy"]: {"threshold": r["threshold"], "at_floor": r["threshold_at_floor"],
+                          "never_warns": bool(r.get("threshold_never_warns") or False)}
             for r in table.filter(pl.col("threshold").is_not_nan())
             .unique("policy", keep="first", maintain_order=True).iter_rows(named=True)
         } if "threshold" in table.columns else {},

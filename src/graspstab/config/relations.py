@@ -128,10 +128,36 @@ def _check_label_band(labels: dict[str, Any]) -> None:
               "label_high to give the band a width (the reference's: 0.35 and 0.65).")
 
 
+def _check_closed_loop_folds(cfg: dict[str, Any]) -> None:
+    """The closed loop over the folds has folds, each protocol's budget thresholds, fold models
+    at its window, and no pick (an export of the fixed split)."""
+    cl, cv = cfg["closed_loop"], cfg["crossval"]
+    if not cl["folds"]["enabled"]:
+        return
+    if not cv["enabled"]:
+        _fail("closed_loop.folds.enabled needs the cross-validation: turn it on with "
+              "--config crossval=kfold (the wide profile does), or turn the folds off.")
+    missing = [p for p in cl["protocols"]
+               if p not in cv["protocols"] or p not in cv["early_warning"]]  # fmt: skip
+    if missing:
+        _fail(f"closed_loop.folds.enabled runs closed_loop.protocols = {list(cl['protocols'])}, "
+              f"but {missing} are not in both crossval.protocols = {list(cv['protocols'])} and "
+              f"crossval.early_warning = {list(cv['early_warning'])}, which give each fold its "
+              "models and budget thresholds: add them there, or drop them from "
+              "closed_loop.protocols.")  # fmt: skip
+    if "pick" in cl["policies"]:
+        _fail("closed_loop.folds.enabled: the pick is an export of the fixed split's sweep and "
+              "has no fold model; drop it from closed_loop.policies.")
+    if ms_of(cl["window_s"]) != ms_of(cv["window_s"]):
+        _fail(f"closed_loop.folds.enabled: closed_loop.window_s = {cl['window_s']} s is not "
+              f"crossval.window_s = {cv['window_s']} s, the folds' models' window; set both alike.")
+
+
 def _check_closed_loop(cfg: dict[str, Any], sweep_ms: set[int], cf_ms: set[int]) -> None:
     """The closed loop's monitors exist: the creep-free protocol has its benchmark, and a policy
     driven by a sweep model or the proxy runs at a sweep window of each protocol it runs under."""
     cl = cfg["closed_loop"]
+    _check_closed_loop_folds(cfg)
     if not cl["enabled"]:
         return
     if "creep_free" in cl["protocols"] and not cfg["creep_free"]["enabled"]:

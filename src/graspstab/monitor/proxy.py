@@ -13,7 +13,7 @@ coarse). It is reported in ratio units too.
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -80,10 +80,15 @@ def select_proxy_threshold(
             "windows": int(len(y)), "unstable": int(y.sum())}  # fmt: skip
 
 
-def proxy_scorer(dataset_dir: str | Path, threshold: Mapping[str, Any]) -> tuple[ProxyScorer, dict]:
-    """The proxy with its threshold chosen on the dataset's validation windows."""
+def proxy_scorer(dataset_dir: str | Path, threshold: Mapping[str, Any],
+                 val_objects: Sequence[str] | None = None) -> tuple[ProxyScorer, dict]:  # fmt: skip
+    """The proxy with its threshold chosen on the dataset's validation windows (or, with
+    ``val_objects``, on those objects' windows: a cross-validation fold's validation objects)."""
     data = load_window_data(dataset_dir)
-    rows = data.rows("val")
+    if val_objects is None:
+        rows = data.rows("val")
+    else:
+        rows = np.flatnonzero(np.isin(data.index["object"].to_numpy(), list(val_objects)))
     choice = select_proxy_threshold(data.windows[rows], data.labels(rows), threshold)
     log.info("proxy threshold %.4f (friction ratio %.4f, rule %s) on %d validation windows",
              choice["threshold"], choice["ratio"], choice["rule"], choice["windows"])  # fmt: skip

@@ -12,7 +12,7 @@ from typing import Any
 from graspstab.common.io import read_json, read_parquet
 from graspstab.report import html as H
 
-PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free load ramp"}
+PROTOCOLS = {"reference": "reference protocol", "creep_free": "creep-free benchmark"}
 POLICIES = {
     "none": "no reflex",
     "always": "tighten at arming (the force-hungry bound)",
@@ -90,18 +90,21 @@ def _tradeoff_parts(trade: Any, name: str, level: int) -> list[str]:
     ]  # fmt: skip
 
 
-def _protocol_parts(protocol: str, files: Mapping[str, Any]) -> list[str]:
+def _protocol_parts(protocol: str, files: Mapping[str, Any], folds: bool = False) -> list[str]:
     summary = read_json(Path(files["summary"]))
     policies = read_parquet(Path(files["policies"]))
     pairs = read_parquet(Path(files["comparisons"]))
     worse = read_parquet(Path(files["worse"]))
     level = round(100 * summary["bootstrap"]["level"])
     name = PROTOCOLS.get(protocol, protocol)
-    parts = [H.heading(3, f"closed-loop-{protocol}", f"Closed loop: {name}")]
+    parts = [H.heading(3, f"closed-loop-folds-{protocol}", f"Closed loop over the folds: {name}")
+             if folds else H.heading(3, f"closed-loop-{protocol}", f"Closed loop: {name}")]
     parts.append(f'<p class="answer"><strong>{H.esc(summary["answer"])}</strong></p>')
     if summary.get("thresholds"):  # a budget threshold at its grid's floor is said, never hidden
         cells = [f"{p} {t['threshold']:.3g}" + (" (at the grid floor: the budget did not bind)"
-                                                 if t["at_floor"] else "")
+                                                 if t["at_floor"] else
+                                                 " (above every validation score: never warns)"
+                                                 if t.get("never_warns") else "")
                  for p, t in summary["thresholds"].items()]  # fmt: skip
         parts.append("<p>Thresholds (a monitor's own, from 3.5.3's recall rule; "
                      "<em>-budget</em>: the grasp-level evaluation's for its false-warning "
@@ -200,7 +203,8 @@ def closed_loop_section(closed_loop: Mapping[str, Any] | None, config: Mapping[s
     """The section, one part per protocol; nothing when the closed loop is off (a run without
     it keeps the report it had)."""
     cl = config.get("closed_loop", {})
-    if not closed_loop or not cl.get("enabled"):
+    folds = bool(cl.get("folds", {}).get("enabled"))
+    if not closed_loop or not (cl.get("enabled") or folds):
         return ""
     parts = [H.heading(2, "closed-loop", "Closed loop: does a warning save the grasp?")]
     reflex = cl["reflex"]
@@ -230,6 +234,16 @@ def closed_loop_section(closed_loop: Mapping[str, Any] | None, config: Mapping[s
             for k, v in closed_loop.items()
             if k.startswith(f"{protocol}_")
         }
-        if "summary" in files:
+        if "summary" in files and cl.get("enabled"):
             parts += _protocol_parts(protocol, files)
+    for protocol in cl["protocols"] if folds else []:
+        files = {k.removeprefix(f"folds_{protocol}_"): v for k, v in closed_loop.items()
+                 if k.startswith(f"folds_{protocol}_")}  # fmt: skip
+        if "summary" in files:
+            parts.append(
+                f"<p>Over the cross-validation folds: each object's first "
+                f"{cl['folds']['grasps']} grasps under its own test fold's models, the proxy's "
+                "threshold on that fold's validation windows and the budget thresholds chosen on "
+                "its validation grasps; intervals resample whole objects.</p>")  # fmt: skip
+            parts += _protocol_parts(protocol, files, folds=True)
     return "\n".join(parts)

@@ -109,11 +109,15 @@ def closed_loop_wildcards(
     """The closed loop's jobs: one per protocol x test object, and one summary per protocol."""
     cl = config["closed_loop"]
     protocols = list(cl["protocols"]) if cl["enabled"] else []
+    folds = list(cl["protocols"]) if cl["folds"]["enabled"] else []
     tests = [o for o in objects if config["objects"]["items"][o]["split"] == "test"]
     return {
         "closed_loop_object": {"protocol": protocols, "object": tests},
         "aggregate_closed_loop": {"protocol": protocols},
         "plot_closed_loop": {"protocol": protocols},
+        # over the cross-validation folds: every object, each in its own test fold
+        "closed_loop_fold_object": {"protocol": folds, "object": list(objects)},
+        "aggregate_closed_loop_folds": {"protocol": folds},
     }
 
 

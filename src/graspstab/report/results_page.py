@@ -53,7 +53,7 @@ MARKERS = {
 }  # fmt: skip
 FAMILIES = ("cnn", "gru", "lstm")
 #: The profiles the page has a block for, in order (config/profile/).
-PROFILES = ("quick", "study", "closed_loop", "wide", "thesis")
+PROFILES = ("quick", "study", "closed_loop", "wide", "closed_loop_folds", "thesis")
 PROTOCOLS = {"": "reference protocol (gravity)", "creep_free": "creep-free load ramp"}
 
 
@@ -695,6 +695,8 @@ TITLES = {
     "study": "Study profile",
     "closed_loop": "Closed-loop profile: does a warning save the grasp?",
     "wide": "Wide profile: generalisation across objects",
+    "closed_loop_folds": "Closed loop over the folds: does a warning save the grasp on unseen "
+                         "objects?",
     "thesis": "Thesis profile, projected",
 }
 COMMANDS = {
@@ -702,18 +704,26 @@ COMMANDS = {
     "study": "snakemake --cores 2 results/report.html --config profile=study",
     "closed_loop": "snakemake --cores 2 results/report.html --config profile=closed_loop",
     "wide": "snakemake --cores 2 results/report.html --config profile=wide",
+    "closed_loop_folds": (
+        "snakemake --cores 2 results/report.html --config profile=closed_loop_folds"
+    ),
     "thesis": (
         "snakemake --profile workflow/profiles/slurm results/report.html --config profile=thesis"
     ),
 }
 
 
+#: profiles added after the results were first generated: no earlier figures exist
+NEW_PROFILES = ("closed_loop_folds",)
+
+
 def _missing_block(profile: str) -> str:
+    before = ("No run of it has been made yet." if profile in NEW_PROFILES else
+              "Its last figures measured before the results were generated are in the changelog "
+              "(version 0.1.0).")  # fmt: skip
     return (
         f"No run of this profile has been recorded at the current version. Its command is "
-        f"`{COMMANDS[profile]}`; record the finished run as above to add its block here. Its "
-        "last figures measured before the results were generated are in the changelog "
-        "(version 0.1.0)."
+        f"`{COMMANDS[profile]}`; record the finished run as above to add its block here. {before}"
     )
 
 
