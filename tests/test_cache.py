@@ -346,6 +346,6 @@ def test_each_cached_script_keys_the_code_it_runs():
                     f"{script.name} imports {node.module}, outside its cache key {sorted(named)}"
                 )
         checked += 1
-    assert checked == 8
+    assert checked == 10
     replay = set(module_closure(["replay/replay_grasps"]))
     assert "replay/figure.py" not in replay and "replay/replay_grasps.py" in replay

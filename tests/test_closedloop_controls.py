@@ -26,9 +26,9 @@ from graspstab.closedloop.reflex import ReflexParams
 from graspstab.closedloop.sources import build_policies
 from graspstab.closedloop.summary import default_comparisons, is_control
 from graspstab.config.compose import compose_config
-from graspstab.monitor.constants import MonitorConstants
 from graspstab.replay.grasp_setup import grasp_load
 from graspstab.replay.scene import build_replay_scene
+from tests.test_closedloop_outcome import Constant
 
 DT = 5e-4
 CONFIG = Path(__file__).parents[1] / "config"
@@ -94,20 +94,6 @@ def test_budget_thresholds_need_the_grasp_level_evaluations_window() -> None:
     on["overrides"] = ["closed_loop.thresholds=[recall]"]
     assert load_config(CONFIG, schema, on, check_files=False)["closed_loop"]["thresholds"] == [
         "recall"]
-
-
-class Constant:
-    """A scorer that gives every window the same probability."""
-
-    def __init__(self, p: float, window: int = 20) -> None:
-        self.p = p
-        self.constants = MonitorConstants(np.zeros((5, 2)), np.ones((5, 2)), 0.5, window)
-
-    def score_one(self, window: np.ndarray) -> float:
-        return self.p
-
-    def __call__(self, windows: np.ndarray) -> np.ndarray:
-        return np.full(len(windows), self.p)
 
 
 def test_controls_on_real_replays_under_the_disturbance(

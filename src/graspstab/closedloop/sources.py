@@ -93,9 +93,10 @@ def with_thresholds(policies: list[Policy], thresholds: tuple[str, ...] | list[s
 
 
 def _base_policies(names: list[str], *, checkpoints: Any, pick_onnx: Any, proxy_dataset: Any,
-                   threshold: Any, latency_table: Any,
-                   oracle_leads_s: list[float] | None) -> list[Policy]:  # fmt: skip
-    """Each named policy once, a monitor at its own validation-selected threshold."""
+                   threshold: Any, latency_table: Any, oracle_leads_s: list[float] | None,
+                   proxy_val: list[str] | None = None) -> list[Policy]:  # fmt: skip
+    """Each named policy once, a monitor at its own validation-selected threshold (the proxy's
+    on the dataset's validation windows, or on ``proxy_val``'s objects' windows)."""
     out = []
     for name in names:
         if name == "oracle" and oracle_leads_s:
@@ -103,7 +104,7 @@ def _base_policies(names: list[str], *, checkpoints: Any, pick_onnx: Any, proxy_
         elif name in FIXED:
             out.append(Policy(name, name))
         elif name == "proxy":
-            scorer, _ = proxy_scorer(proxy_dataset, threshold)
+            scorer, _ = proxy_scorer(proxy_dataset, threshold, proxy_val)
             out.append(Policy(name, "monitor", scorer, scorer.constants.threshold, 0.0))
         elif name == "pick":
             scorer = load_onnx(pick_onnx)
@@ -138,18 +139,8 @@ def build_fold_policies(
     if "pick" in names:
         raise ValueError("closed loop over the folds: the pick is an export of the fixed split's "
                          "sweep and has no fold model; leave it out of closed_loop.policies")
-    out: list[Policy] = []
-    for name in names:
-        if name == "oracle" and oracle_leads_s:
-            out += [Policy(oracle_name(x), "oracle", lead_s=float(x)) for x in oracle_leads_s]
-        elif name in FIXED:
-            out.append(Policy(name, name))
-        elif name == "proxy":
-            val = [o for o, s in assignment.items() if s == "val"]
-            scorer, _ = proxy_scorer(proxy_dataset, threshold, val)  # type: ignore[arg-type]
-            out.append(Policy(name, "monitor", scorer, scorer.constants.threshold, 0.0))
-        else:
-            model, constants = read_trained(*checkpoints[name])
-            out.append(Policy(name, "monitor", TorchScorer(model, constants), constants.threshold,
-                              latency_s(latency_table, name, constants.window_steps)))  # fmt: skip
+    out = _base_policies(names, checkpoints=checkpoints, pick_onnx=None,
+                         proxy_dataset=proxy_dataset, threshold=threshold,
+                         latency_table=latency_table, oracle_leads_s=oracle_leads_s,
+                         proxy_val=[o for o, s in assignment.items() if s == "val"])  # fmt: skip
     return with_thresholds(out, thresholds, fold_thresholds["thresholds"], shuffled)
