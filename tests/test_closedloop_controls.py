@@ -187,3 +187,46 @@ def test_fold_policies_come_from_the_folds_own_files(tmp_path: Path) -> None:
         build_fold_policies(["pick"], checkpoints={}, fold_thresholds=folds, proxy_dataset=data,
                             assignment=assignment, threshold=rule,
                             latency_table=tmp_path / "latency.parquet")  # fmt: skip
+
+
+def test_a_replay_continued_from_a_fork_is_the_full_replay(
+    foam_brick_dir: Path, built_hand_dir: Path
+) -> None:
+    """Under the disturbance (its load copied at the fork), a reflex that tightens at step 1300
+    replayed from placement and continued from the no-reflex run's fork at 1200 give the same
+    rows, bit for bit, and end alike; a monitor-driven reflex cannot be continued."""
+    from graspstab.closedloop.policies import actuator_axes, make_reflex
+    from graspstab.closedloop.reflex import GripReflex
+    from graspstab.replay.grasp_setup import slip_sampler
+
+    cfg = compose_config(CONFIG, ["creep_free.load=perturb", "replay.perturb.delay_s=[0.1,0.2]"])
+    # far from the hand the object falls free: no contact-loss stop, so every chunk runs
+    params = dict(protocol_params(cfg, "creep_free"), steps=2000, chunk_steps=400,
+                  stop_after_loss_s=10.0)
+    grasp = {"grasp_id": 4, "shard": 0, "wrist_x": 0.3, "wrist_y": -0.1, "wrist_z": 0.05,
+             **{f"quat_{a}": v for a, v in zip("wxyz", (1.0, 0.0, 0.0, 0.0), strict=True)},
+             **{f"theta_{k:02d}": 0.0 for k in range(16)}}  # fmt: skip
+    scene = build_replay_scene(built_hand_dir, foam_brick_dir, params)
+    data, slip = mujoco.MjData(scene.model), slip_sampler(scene, params)
+    closing, upper = actuator_axes(scene, scene.model.nu)
+    reflex = ReflexParams(0.2, 4.0, 0.01)
+    forks: dict = {}
+    base = replay_once(scene, data, grasp, "061_foam_brick", params, slip=slip, forks=forks)
+    assert sorted(forks)[:4] == [0, 400, 800, 1200]
+
+    def grip() -> GripReflex:
+        return make_reflex(Policy("x", "shuffled", of="m"), reflex, closing, upper, DT,
+                           fire_step=1300)  # fmt: skip
+
+    full = replay_once(scene, data, grasp, "061_foam_brick", params, grip(), slip)
+    cont = replay_once(scene, data, grasp, "061_foam_brick", params, grip(), slip,
+                       start=forks[1200], prefix=base.traces)  # fmt: skip
+    assert (cont.steps, cont.stop_reason) == (full.steps, full.stop_reason)
+    assert set(cont.traces) == set(full.traces)
+    for c, v in full.traces.items():
+        np.testing.assert_array_equal(cont.traces[c], v, err_msg=c)
+    assert full.traces["reflex"][1299] == 0 and full.traces["reflex"][1300] > 0
+    monitored = make_reflex(Policy("m", "monitor", Constant(0.9)), reflex, closing, upper, DT)
+    with pytest.raises(ValueError, match="cannot start mid-replay"):
+        replay_once(scene, data, grasp, "061_foam_brick", params, monitored, slip,
+                    start=forks[1200], prefix=base.traces)  # fmt: skip

@@ -30,7 +30,7 @@ from graspstab.common.io import read_parquet, save_npz, write_parquet
 from graspstab.labels.interval import steps_of
 from graspstab.replay.grasp_setup import deep_stop, grasp_load, slip_sampler
 from graspstab.replay.protocols import creep_free_replay, replay_params
-from graspstab.replay.run import ReplayResult, run_replay
+from graspstab.replay.run import Fork, ReplayResult, run_replay
 from graspstab.replay.scene import build_replay_scene, place_grasp
 from graspstab.replay.slip import SlipSampler
 
@@ -94,10 +94,14 @@ def timeline_rank(row: dict[str, Any]) -> int:
 
 def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_id: str,
                 params: dict[str, Any], controller: Any = None,
-                slip: SlipSampler | None = None) -> ReplayResult:  # fmt: skip
+                slip: SlipSampler | None = None, forks: dict[int, Fork] | None = None,
+                start: Fork | None = None,
+                prefix: dict[str, np.ndarray] | None = None) -> ReplayResult:  # fmt: skip
     """One replay of ``grasp`` (a grasp-table row) from its placement, with ``controller``
     (``slip``: the scene's slip sampler, ``replay.grasp_setup.slip_sampler``; None: a new one,
-    which copies the model)."""
+    which copies the model); ``forks`` collects where it can be continued from, ``start`` and
+    ``prefix`` continue an earlier replay of the grasp from one of its forks
+    (``replay.run.run_replay``)."""
     pos = np.array([grasp[f"wrist_{a}"] for a in "xyz"])
     quat = np.array([grasp[f"quat_{a}"] for a in "wxyz"])
     joints = np.array([grasp[f"theta_{k:02d}"] for k in range(16)])
@@ -108,7 +112,8 @@ def replay_once(scene: Any, data: mujoco.MjData, grasp: dict[str, Any], object_i
     return run_replay(
         scene.model, data, scene.layout, int(params["steps"]), int(params["chunk_steps"]),
         max(1, round(float(params["stop_after_loss_s"]) / dt)), load, scene.object_body,
-        deep_stop(params), controller=controller, slip=slip,
+        deep_stop(params), controller=controller, slip=slip, forks=forks, start=start,
+        prefix=prefix,
     )  # fmt: skip
 
 
@@ -224,11 +229,18 @@ def closed_loop_object(
         key = same_run_key(grip)
         if key is not None and key in st["done"]:
             return st["done"][key], grip, False  # the same tightening from the same step
-        if v.policy.kind == "monitor":
+        if key is None:  # release calm: the monitor stays in charge, replay it whole
             grip = reflex_for(v, st, fire_step)
-        result = replay_once(scene, data, g, object_id, params, grip, slip)
-        if key is not None:
-            st["done"][key] = result
+            return replay_once(scene, data, g, object_id, params, grip, slip), grip, True
+        # release never: until its first tightening the run is the no-reflex one and after it
+        # nothing depends on the monitor, so a schedule tightening there, continued from the
+        # no-reflex run's last fork before it, is the same run (replay.run.Fork)
+        first = key[0]
+        schedule = GripReflex(v.reflex, closing, upper, dt, fire_at=first)
+        fork = st["forks"][max(f for f in st["forks"] if f <= first)]
+        result = replay_once(scene, data, g, object_id, params, schedule, slip, start=fork,
+                             prefix=st["base_run"].traces)  # fmt: skip
+        st["done"][key] = result
         return result, grip, True
 
     swept = {v.label: (v.parameter, v.value) for v in [*runs_of, *last]}
@@ -263,9 +275,10 @@ def closed_loop_object(
     for i, g in enumerate(rows_in):
         gid = int(g["grasp_id"])
         start = time.perf_counter()
-        base_run = replay_once(scene, data, g, object_id, params, slip=slip)
+        forks: dict[int, Fork] = {}
+        base_run = replay_once(scene, data, g, object_id, params, slip=slip, forks=forks)
         base = baseline_of(base_run.traces, labels, dt)
-        st: dict[str, Any] = {"base_run": base_run, "base": base, "done": {},
+        st: dict[str, Any] = {"base_run": base_run, "base": base, "done": {}, "forks": forks,
                               "load_step": load_step_of(scene, params, object_id, gid)}
         mine = [row(gid, "none", base_run, None, base, True)]
         runs = {"none": base_run}
@@ -285,8 +298,9 @@ def closed_loop_object(
                 best, traces = rank, {(gid, "none"): base_run.traces,
                                       (gid, timeline): runs[timeline].traces}  # fmt: skip
         kept.append({"base": base, "load_step": st["load_step"], "first_on": first_on,
-                     "none_row": mine[0],
-                     "done": {}})  # fmt: skip
+                     "none_row": mine[0], "done": {},
+                     # a shuffled control continues the no-reflex run from its forks
+                     **({"base_run": base_run, "forks": forks} if last else {})})  # fmt: skip
         log.info("%s grasp %d (%d/%d): baseline %s; dropped under %s (%.1f s wall)", object_id,
                  gid, i + 1, len(rows_in),
                  "no verdict" if not base.usable else "fails" if base.failing else "holds",

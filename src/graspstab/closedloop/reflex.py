@@ -110,6 +110,17 @@ class GripReflex:
         (self.on_steps if direction > 0 else self.off_steps).append(step)
         self._events.append((step, direction))
 
+    def skip_to(self, step: int) -> None:
+        """Start at step ``step`` with the targets untouched (a replay continued from a fork):
+        only a fixed schedule acting at or after it can, since a monitor would miss the frames
+        before it."""
+        if self.monitor is not None:
+            raise ValueError("a monitor-driven reflex cannot start mid-replay: its monitor would "
+                             "miss the earlier frames; fork a fixed schedule instead")
+        if self._offset_at != 0 or any(e[0] < step for e in self._events):
+            raise ValueError(f"the reflex acts before step {step} or has already run")
+        self._offset_at = step
+
     def chunk_steps(self, first: int, default: int) -> int:
         """``delay + 1`` steps while a warning could still act, else ``default``."""
         return min(default, self.delay + 1) if self.live else default

@@ -18,6 +18,7 @@ and sees each chunk's forces as soon as the chunk is simulated, as a controller 
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -77,9 +78,29 @@ class Controller(Protocol):
         """Take the fingertip forces (n, 5) [N] that steps ``first ..`` recorded."""
         ...
 
+    def skip_to(self, step: int) -> None:
+        """Start at step ``step`` (a replay continued from a fork): nothing acted before it."""
+        ...
+
 
 #: trace channel of a controlled replay: how far the targets were moved in, per step [rad]
 REFLEX = "reflex"
+
+
+@dataclass(frozen=True)
+class Fork:
+    """Where a replay can be continued from: the state at the start of one of its chunks and
+    what the loop carried there (the solver's warm start, the stop rules' runs, the load's own
+    state). A replay continued from it with the same controls computes the same rows as the
+    original from there on (rollout chunking changes nothing), so a closed-loop run whose reflex
+    first acts at step s need only simulate from the last fork at or before s."""
+
+    step: int
+    state: np.ndarray
+    warmstart: np.ndarray
+    lost_run: int
+    deep_run: int
+    load: RampLoad | None
 
 
 @dataclass
@@ -113,6 +134,9 @@ def run_replay(
     deep_stop: DeepStop | None = None,
     controller: Controller | None = None,
     slip: SlipSampler | None = None,
+    forks: dict[int, Fork] | None = None,
+    start: Fork | None = None,
+    prefix: dict[str, np.ndarray] | None = None,
 ) -> ReplayResult:
     """Roll out ``steps`` steps from ``data``'s current state with its current controls.
 
@@ -127,7 +151,10 @@ def run_replay(
     largest target offset it applies at each step is trace channel ``reflex``. ``slip`` samples
     the contact slip channels (:mod:`graspstab.replay.slip`; None: a new sampler every
     ``slip.DEFAULT_EVERY`` steps); build one per scene and pass it to every replay of the scene,
-    since building one copies the model.
+    since building one copies the model. ``forks`` (a dict) receives a :class:`Fork` at the
+    start of every chunk; ``start`` continues a replay from one, ``prefix`` being the traces of
+    the replay it was taken from (their rows before the fork are this replay's; the controller,
+    if any, must be a fixed schedule that acts at or after the fork).
     """
     if chunk < 1 or steps < 1:
         raise ValueError(f"need steps >= 1 and chunk >= 1, got {steps}, {chunk}")
@@ -146,6 +173,20 @@ def run_replay(
     done, reason, overflow, lost_run, deep_run = 0, "completed", 0, 0, 0
     pending: list[np.ndarray] = []  # raw rows whose force channels are not computed yet
     pending_rows = 0
+    if start is not None:
+        if prefix is None:
+            raise ValueError("a replay continued from a fork needs the traces it forked from")
+        done, lost_run, deep_run = start.step, start.lost_run, start.deep_run
+        mujoco.mj_setState(model, data, start.state, spec)
+        data.qacc_warmstart[:] = start.warmstart
+        load = copy.deepcopy(start.load) if load is not None else None
+        for c in parts:
+            parts[c].append(np.zeros(done, np.float32) if c == REFLEX
+                            else np.asarray(prefix[c][:done], np.float32))  # fmt: skip
+        if done > 0:  # the held slip sample of the row before the fork
+            slip.last = np.r_[prefix["tip_slip"][done - 1], prefix["link_slip"][done - 1]]
+        if controller is not None:
+            controller.skip_to(done)
 
     def flush() -> int:
         nonlocal pending_rows
@@ -162,6 +203,9 @@ def run_replay(
     while done < steps:
         n = min(chunk, steps - done)
         mujoco.mj_getState(model, data, state, spec)
+        if forks is not None:
+            forks[done] = Fork(done, state.copy(), data.qacc_warmstart.copy(), lost_run,
+                               deep_run, copy.deepcopy(load))  # fmt: skip
         if load is not None:
             n = load.chunk_steps(done, n)
         if controller is not None:
