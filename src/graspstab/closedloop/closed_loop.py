@@ -227,6 +227,10 @@ def closed_loop_object(
         if v.policy.kind == "monitor" and not acts_on(grip, st["base_run"].traces):
             return None, grip, False  # the scan saw every frame the loop would: no replay needed
         key = same_run_key(grip)
+        if key is not None and key[0] >= st["base_run"].steps:
+            # a schedule acting after the no-reflex run stopped: that run, step for step, stops
+            # at the same place first, so the reflex never acts
+            return None, grip, False
         if key is not None and key in st["done"]:
             return st["done"][key], grip, False  # the same tightening from the same step
         if key is None:  # release calm: the monitor stays in charge, replay it whole
