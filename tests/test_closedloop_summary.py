@@ -224,3 +224,16 @@ def test_the_answer_says_when_false_alarms_are_undefined() -> None:
     p, c = summarise_policies(t, pols, resamples=100, compare=default_comparisons(pols))
     text = answer("creep_free", p, c, 0.95)
     assert "false alarms undefined: no grasp holds without a reflex" in text and "nan" not in text
+
+
+def test_the_answer_states_each_monitor_against_its_shuffled_timing() -> None:
+    """A shuffled control identical to its monitor: the comparison is zero with a zero interval,
+    and the answer says so in its own clause."""
+    t = planted()
+    t = pl.concat([t, t.filter(pl.col("policy") == "gru").with_columns(
+        policy=pl.lit("gru~shuffled"))])  # fmt: skip
+    pols = ["none", "always", "proxy", "gru", "gru~shuffled"]
+    table, pairs = summarise_policies(t, pols, resamples=100, compare=default_comparisons(pols))
+    text = answer("reference", table, pairs, 0.95)
+    assert ("Against its own tightening times dealt to other grasps (the shuffled control), "
+            "drop rate: gru +0.0 points [+0.0, +0.0].") in text

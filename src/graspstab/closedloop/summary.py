@@ -317,6 +317,14 @@ def answer(protocol: str, policies: pl.DataFrame, pairs: pl.DataFrame, level: fl
         if mine:
             parts.append(f"{rule}, " + "; ".join(mine))
     text = head + ": " + ("; ".join(parts) if parts else "no learned monitor was run") + "."
+    # what each monitor's knowledge of the grasp buys over its own timing dealt to other grasps
+    own = {r["policy"]: r for r in pairs.iter_rows(named=True) if r["figure"] == "drop_rate"
+           and r["against"] == f"{r['policy']}{SHUFFLED}"}  # fmt: skip
+    if own:
+        text += (" Against its own tightening times dealt to other grasps (the shuffled "
+                 "control), drop rate: " + "; ".join(
+                     f"{p} {100 * r['diff']:+.1f} points {_span(r['lo'], r['hi'], True)}"
+                     for p, r in own.items()) + ".")  # fmt: skip
     bounds = {"oracle": "the best any warning can do", "always": "the force-hungry bound",
               "load_onset": "a perfect detector of the load"}  # fmt: skip
     bounds |= {p: f"tightening {p.removeprefix('oracle-')} before the onset"
