@@ -58,6 +58,26 @@ def test_the_shuffled_control_keeps_the_monitors_timing_distribution() -> None:
     assert steps != shuffled_steps(offsets, arms, 0, "obj/cnn~shuffled")  # per monitor
 
 
+def test_tightening_offsets_pool_and_dealing_without_replacement() -> None:
+    """The pool: each monitor's first tightening from arming over the usable grasps (None where
+    it never tightened); dealt from a larger pool, each grasp gets a different entry."""
+    from graspstab.closedloop.closed_loop import tightening_offsets
+
+    t = pl.DataFrame({
+        "policy": ["none", "gru", "gru", "gru", "always"],
+        "usable": [True, True, True, False, True],
+        "parameter": [""] * 5, "threshold": [np.nan, 0.5, 0.5, 0.5, np.nan],
+        "tighten_s": [np.nan, 0.30, np.nan, 0.9, 0.1], "arm_s": [0.1, 0.1, 0.2, 0.1, 0.1],
+    })  # fmt: skip
+    assert tightening_offsets(t, DT) == {"gru": [400, None]}
+    pool = list(range(100, 120))
+    steps = shuffled_steps(pool, [1000, 2000, 3000], 0, "o/gru~shuffled")
+    dealt = [s - a for s, a in zip(steps, [1000, 2000, 3000], strict=True)]
+    assert len(set(dealt)) == 3 and set(dealt) <= set(pool)
+    with pytest.raises(ValueError, match="2 tightening offsets to deal to 3 grasps"):
+        shuffled_steps([1, 2], [0, 0, 0], 0, "k")
+
+
 def test_policy_names_and_comparisons_cover_the_controls() -> None:
     names = policy_names(["none", "always", "oracle", "load_onset", "proxy", "gru"],
                          [0.0, 0.05, 0.15], shuffled=True)  # fmt: skip

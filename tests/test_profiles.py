@@ -207,6 +207,10 @@ def test_the_closed_loop_over_the_folds_runs_every_object_on_its_own_folds_files
     counts = _job_counts(proc.stdout)
     assert counts["closed_loop_fold_object"] == len(cfg["objects"]["items"]) == 44
     assert counts["aggregate_closed_loop_folds"] == 1 and "closed_loop_object" not in counts
+    # the shuffled controls deal from every object's tightening times: a second job per object
+    assert counts["closed_loop_fold_shuffled"] == 44 and counts["closed_loop_fold_offsets"] == 1
+    shuffled = next(j for j in listed_jobs(proc.stdout) if j["rule"] == "closed_loop_fold_shuffled")
+    assert "results/closed_loop/folds/creep_free/offsets.json" in shuffled["input"]
     folds = kfold_assignments(list(cfg["objects"]["items"]), cv["k"], cv["fold_seed"])
     for j in listed_jobs(proc.stdout):
         if j["rule"] != "closed_loop_fold_object":

@@ -195,9 +195,11 @@ def closed_loop_fold_inputs(wildcards):
     return out
 
 
-def closed_loop_fold_tables(protocol):
-    return expand("results/closed_loop/folds/{protocol}/{object}.parquet", protocol=protocol,
-                  object=object_ids())  # fmt: skip
+def closed_loop_fold_tables(protocol, part=""):
+    """Every object's table of a protocol: its own policies, or (part "shuffled/") the shuffled
+    controls, which deal from every object's tightening times."""
+    return expand("results/closed_loop/folds/{protocol}/{part}{object}.parquet",
+                  protocol=protocol, part=part, object=object_ids())  # fmt: skip
 
 
 rule closed_loop_fold_object:
@@ -230,9 +232,45 @@ rule closed_loop_fold_object:
         "../scripts/closed_loop_fold_object.py"
 
 
-rule aggregate_closed_loop_folds:
+rule closed_loop_fold_offsets:
     input:
         lambda wc: closed_loop_fold_tables(wc.protocol),
+    output:
+        "results/closed_loop/folds/{protocol}/offsets.json",
+    params:
+        dt=config["replay"]["timestep"],
+    threads: 1
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    log:
+        "results/logs/closed_loop_fold_offsets/{protocol}.log",
+    benchmark:
+        "results/benchmarks/closed_loop_fold_offsets/{protocol}.tsv"
+    script:
+        "../scripts/closed_loop_fold_offsets.py"
+
+
+use rule closed_loop_fold_object as closed_loop_fold_shuffled with:
+    input:
+        unpack(closed_loop_fold_inputs),
+        grasps=shard_tables,
+        object_xml="results/objects/{object}/object.xml",
+        hand=rules.build_hand.output,
+        offsets=rules.closed_loop_fold_offsets.output[0],
+    output:
+        table="results/closed_loop/folds/{protocol}/shuffled/{object}.parquet",
+        timeline="results/closed_loop/folds/{protocol}/shuffled/timeline/{object}.npz",
+    log:
+        "results/logs/closed_loop_fold_shuffled/{protocol}_{object}.log",
+    benchmark:
+        "results/benchmarks/closed_loop_fold_shuffled/{protocol}_{object}.tsv"
+
+
+rule aggregate_closed_loop_folds:
+    input:
+        lambda wc: closed_loop_fold_tables(wc.protocol)
+        + (closed_loop_fold_tables(wc.protocol, "shuffled/") if CL["shuffled"] else []),
     output:
         policies=f"{CLF_SUMMARY}/policies.parquet",
         comparisons=f"{CLF_SUMMARY}/comparisons.parquet",

@@ -32,6 +32,11 @@ def compute() -> None:
         latency_table=inputs["latency"], oracle_leads_s=list(cl["oracle_leads_s"]),
         shuffled=bool(cl["shuffled"]), thresholds=list(cl["thresholds"]),
     )  # fmt: skip
+    # the shuffled controls deal from every object's tightening times, so they run in a second
+    # job per object (closed_loop_fold_shuffled, with the pool as input); this one runs the rest
+    pool = read_json(inputs["offsets"]) if "offsets" in inputs else None
+    keep = ("none", "shuffled") if pool is not None else None
+    policies = [p for p in policies if (p.kind in keep if keep else p.kind != "shuffled")]
     monitor = dict(sm.params.monitor)
     table, traces = closed_loop_object(
         sm.wildcards.object, Path(sm.input.object_xml).parent, Path(sm.input.hand[0]).parent,
@@ -40,8 +45,11 @@ def compute() -> None:
         debounce=int(monitor["debounce"]), arm_s=float(cl["arm_s"]), arming=cl["arming"],
         window_steps=round(float(cl["window_s"]) / float(sm.params.replay["timestep"])),
         fresh=bool(cl["fresh"]), shuffle_seed=int(cl["shuffle_seed"]),
-        max_grasps=cl["folds"]["grasps"], timeline=sm.params.timeline,
+        max_grasps=cl["folds"]["grasps"], timeline=None if pool else sm.params.timeline,
+        offset_pool=pool,
     )  # fmt: skip
+    if pool is not None:  # the no-reflex rows are the first job's
+        table = table.filter(table["policy"] != "none")
     write_timeline(sm.output.timeline, table, traces)
     write_closed_loop(sm.output.table, table, {
         "object_id": sm.wildcards.object, "protocol": sm.wildcards.protocol,

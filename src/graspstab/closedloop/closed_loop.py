@@ -14,7 +14,7 @@ import json
 import logging
 import time
 import zlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -140,12 +140,28 @@ def load_step_of(scene: Any, params: dict[str, Any], object_id: str, grasp_id: i
 def shuffled_steps(offsets: Sequence[int | None], arms: Sequence[int], seed: int,
                    key: str) -> list[int | None]:  # fmt: skip
     """A shuffled control's step per grasp: a permutation (seeded by ``seed`` and ``key``) deals
-    each grasp another grasp's tightening offset from arming (None: that monitor never
-    tightened there), added to this grasp's own arming step."""
+    each grasp an offset from arming out of ``offsets`` (None: that monitor never tightened
+    there), added to this grasp's own arming step. ``offsets`` are this run's grasps' own (a
+    permutation of them), or a pool from more grasps (every object of a cross-validation run):
+    then each grasp gets a different one, drawn without replacement."""
+    if len(offsets) < len(arms):
+        raise ValueError(f"{len(offsets)} tightening offsets to deal to {len(arms)} grasps")
     rng = np.random.default_rng([int(seed), zlib.crc32(key.encode())])
-    order = rng.permutation(len(offsets))
+    order = rng.permutation(len(offsets))[: len(arms)]
     return [None if offsets[j] is None else arms[i] + int(offsets[j])
             for i, j in enumerate(order)]  # fmt: skip
+
+
+def tightening_offsets(table: pl.DataFrame, dt: float) -> dict[str, list[int | None]]:
+    """Each monitor's first tightening step counted from arming, per usable grasp of a closed-loop
+    table (None where it never tightened): the pool a shuffled control deals from."""
+    out: dict[str, list[int | None]] = {}
+    rows = table.filter(pl.col("usable") & (pl.col("parameter") == "")
+                        & pl.col("threshold").is_not_nan())  # fmt: skip
+    for (policy,), part in rows.group_by(["policy"], maintain_order=True):
+        out[str(policy)] = [None if not np.isfinite(t) else round((t - a) / dt)
+                            for t, a in zip(part["tighten_s"], part["arm_s"], strict=True)]
+    return out
 
 
 def closed_loop_object(
@@ -171,6 +187,7 @@ def closed_loop_object(
     variants: Sequence[Variant] = (),
     keep_traces: bool = False,
     timeline: str | None = None,
+    offset_pool: Mapping[str, Sequence[int | None]] | None = None,
 ) -> tuple[pl.DataFrame, dict[tuple[int, str], dict[str, np.ndarray]]]:
     """Every grasp (or ``grasp_ids``; at most ``max_grasps``, the lowest ids) of ``grasp_table``
     (one shard table or several) under every policy (with ``reflex``, ``debounce``, armed by
@@ -183,7 +200,9 @@ def closed_loop_object(
     ``keep_traces``, each run's traces keyed (grasp id, label); without it the traces are
     dropped once the grasp's rows are made. ``timeline`` (a label): the traces returned are
     instead the no-reflex and that label's runs of the one grasp that shows the reflex best
-    (``timeline_rank``)."""
+    (``timeline_rank``). ``offset_pool`` (monitor -> offsets, :func:`tightening_offsets` of many
+    grasps): the shuffled controls deal from it instead of from this run's grasps; its monitors
+    then need not run here."""
     scene = build_replay_scene(hand_dir, object_dir, params)
     data = mujoco.MjData(scene.model)
     slip = slip_sampler(scene, params)
@@ -204,7 +223,7 @@ def closed_loop_object(
     labels_seen = [v.label for v in [*runs_of, *last]]
     if len(set(labels_seen)) != len(labels_seen) or "none" in labels_seen:
         raise ValueError(f"closed loop: run labels must be unique and not 'none': {labels_seen}")
-    monitors = {v.label for v in runs_of if v.policy.kind == "monitor"}
+    monitors = {v.label for v in runs_of if v.policy.kind == "monitor"} | set(offset_pool or {})
     unknown = sorted({v.policy.of for v in last} - monitors)
     if unknown:
         raise ValueError(f"closed loop: shuffled controls of {unknown}, which are not monitor "
@@ -314,6 +333,8 @@ def closed_loop_object(
         arms = [arm_step_of(k["base"], arming, v.arm_s, window_steps, dt) for k in kept]
         offsets = [None if k["first_on"].get(v.policy.of) is None
                    else k["first_on"][v.policy.of] - arm for k, arm in zip(kept, arms, strict=True)]
+        if offset_pool is not None:
+            offsets = list(offset_pool[v.policy.of])
         steps = shuffled_steps(offsets, arms, shuffle_seed, f"{object_id}/{v.label}")
         for g, k, step in zip(rows_in, kept, steps, strict=True):
             result, grip, replayed = run(v, k, g, step)

@@ -117,6 +117,9 @@ def closed_loop_wildcards(
         "plot_closed_loop": {"protocol": protocols},
         # over the cross-validation folds: every object, each in its own test fold
         "closed_loop_fold_object": {"protocol": folds, "object": list(objects)},
+        "closed_loop_fold_offsets": {"protocol": folds if cl["shuffled"] else []},
+        "closed_loop_fold_shuffled": {"protocol": folds if cl["shuffled"] else [],
+                                      "object": list(objects)},
         "aggregate_closed_loop_folds": {"protocol": folds},
     }
 
