@@ -275,17 +275,16 @@ def closed_loop_object(
         parameter, value = swept.get(name, ("", np.nan))
         pol = policy_of.get(name)
         monitored = pol is not None and pol.kind == "monitor"
+        arm = arm_step_of(base, arming, arm_of.get(name, arm_s), window_steps, dt)
         return {"object": object_id, "grasp_id": gid, "policy": name, "parameter": parameter,
                 "value": value, "stop_reason": result.stop_reason, "steps": result.steps,
                 "threshold": float(pol.scorer.constants.threshold if pol.threshold is None  # type: ignore[union-attr]
                                    else pol.threshold) if monitored else np.nan,  # type: ignore[union-attr]
                 "threshold_at_floor": bool(pol.at_floor) if monitored else False,  # type: ignore[union-attr]
                 "threshold_never_warns": bool(pol.never_warns) if monitored else False,  # type: ignore[union-attr]
-                "arm_s": arm_step_of(base, arming, arm_of.get(name, arm_s), window_steps,
-                                     dt) * dt,
+                "arm_s": arm * dt,
                 # the run's seconds from arming to its end: a false alarm's exposure
-                "armed_s": max(0, result.steps - arm_step_of(
-                    base, arming, arm_of.get(name, arm_s), window_steps, dt)) * dt,
+                "armed_s": max(0, result.steps - arm) * dt,
                 **outcome(result.traces, grip, base, labels, dt),
                 "replayed": replayed}  # fmt: skip
 
